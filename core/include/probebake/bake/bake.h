@@ -1,0 +1,52 @@
+// Baking a probe volume: the whole job in process, on a oneTBB worker pool.
+//
+// Contract: the result depends only on the BakeJob (scene, grid, settings with its seed): the same
+// job gives the same bits for any thread count, work order or resumption. Long-running; reports
+// progress through a callback at a bounded rate and stops within a fraction of a second of
+// cancellation. Knows nothing of gRPC; the server adapts its job state to these hooks.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+
+#include "absl/status/statusor.h"
+#include "probebake/bake/probe_volume.h"
+#include "probebake/scene/scene.h"
+
+namespace probebake {
+
+struct BakeProgress {
+  int64_t probesDone = 0;
+  int64_t probesTotal = 0;  // probes to bake (known after placement)
+  int64_t samples = 0;
+  int64_t rays = 0;
+  double elapsedSeconds = 0;
+  double etaSeconds = -1;     // < 0: unknown
+  double errorEstimate = -1;  // mean relative standard error of finished probes; < 0: unknown
+};
+
+struct BakeOptions {
+  // Worker threads; 0 = every hardware thread.
+  int threads = 0;
+  // Called from any thread, serialised, at most every `progressIntervalSeconds` and once at the
+  // end. Must not block for long.
+  std::function<void(const BakeProgress&)> progress;
+  double progressIntervalSeconds = 0.25;
+  // Set to true (from any thread) to stop the bake; Bake then returns CANCELLED.
+  const std::atomic<bool>* cancel = nullptr;
+  // Optional resumption: a partial volume from an earlier run of the same job, whose finished
+  // probes ((*resumeDone)[probe] != 0) are kept as they are and not re-baked.
+  const ProbeVolume* resumeFrom = nullptr;
+  const std::vector<uint8_t>* resumeDone = nullptr;
+  // Optional checkpoint hook: called from worker threads, serialised, with the volume so far and
+  // the per-probe done flags, at most every `checkpointIntervalSeconds`.
+  std::function<void(const ProbeVolume&, const std::vector<uint8_t>& done)> checkpoint;
+  double checkpointIntervalSeconds = 10;
+};
+
+// Bakes `job`. Errors: CANCELLED when cancelled, INTERNAL for tracer failures (Embree device
+// errors), INVALID_ARGUMENT for a job the validator should have rejected.
+absl::StatusOr<ProbeVolume> Bake(const BakeJob& job, const BakeOptions& options);
+
+}  // namespace probebake

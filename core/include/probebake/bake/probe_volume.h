@@ -1,0 +1,52 @@
+// The result of a bake: per-probe SH radiance (and optionally irradiance), validity, error
+// estimate and sample count over a ProbeGrid (SPEC 3, 5). Written to and read from .vdb files by
+// probebake/volume/vdb_io.h.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "probebake/scene/scene.h"
+
+namespace probebake {
+
+struct BakeStats {
+  double wallSeconds = 0;
+  int threads = 0;
+  int64_t probes = 0;         // probes baked (active)
+  int64_t samples = 0;        // sample paths, all probes
+  int64_t rays = 0;           // every ray traced, shadow rays included
+  int64_t invalidProbes = 0;  // baked probes with validity 0
+};
+
+struct ProbeVolume {
+  ProbeGrid grid;
+  int shOrder = 0;
+  // Per probe (linear index, ProbeGrid::LinearIndex): 1 if baked (an active voxel), else 0.
+  std::vector<uint8_t> active;
+  // Coefficient planes: radiance[c][3 * probe + channel] is RGB channel `channel` of SH
+  // coefficient c (linear index l(l+1)+m) at `probe`. Planes, not interleaved per probe, so a
+  // writer can release each plane once it is stored.
+  std::vector<std::vector<float>> radiance;
+  // Same layout; empty unless irradiance was requested. The window is applied here only.
+  std::vector<std::vector<float>> irradiance;
+  std::vector<float> validity;     // per probe: 1 valid, 0 inside geometry
+  std::vector<float> stdError;     // per probe: relative standard error of luminance L0
+  std::vector<float> sampleCount;  // per probe: sample paths taken
+  std::string window = "NONE";     // as recorded in the file's sh_window metadata
+  BakeStats stats;
+
+  int CoeffCount() const { return (shOrder + 1) * (shOrder + 1); }
+};
+
+// Metadata recorded with a volume (SPEC 5) besides what ProbeVolume holds.
+struct VolumeMetadata {
+  int64_t samplesPerProbe = 0;
+  int maxDepth = 0;
+  uint64_t seed = 0;
+  std::string sceneDigest;
+  std::string settingsJson;
+};
+
+}  // namespace probebake

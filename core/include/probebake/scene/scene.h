@@ -1,0 +1,170 @@
+// The scene a bake sees: validated, in world space, in double precision, with every asset loaded.
+// Built from a JobSpec by BuildBakeJob (probebake/job/job.h); the tracer never sees protobuf.
+//
+// Conventions (SPEC 3, 4, 4a): lengths in scene units; RGB is linear Rec.709; radiance per
+// steradian per unit area; directions are unit vectors. A triangle's front face is
+// counter-clockwise, geometric normal (b - a) x (c - a). Geometry occludes from both sides.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "probebake/math/mat3.h"
+#include "probebake/math/vec3.h"
+
+namespace probebake {
+
+struct Material {
+  std::string name;
+  Vec3d albedo;    // each channel in [0, 1)
+  Vec3d emission;  // radiance, each channel >= 0
+};
+
+// Triangles in world space (the job's transform already applied).
+struct TriangleMesh {
+  std::string name;
+  std::vector<Vec3d> positions;
+  std::vector<uint32_t> indices;  // 3 per triangle, all < positions.size()
+  uint32_t material = 0;          // index into Scene::materials
+
+  size_t TriangleCount() const { return indices.size() / 3; }
+};
+
+struct PointLight {
+  Vec3d position;
+  Vec3d intensity;  // radiant intensity, W/sr per channel
+};
+
+struct SpotLight {
+  Vec3d position;
+  Vec3d direction;  // unit, the direction light travels along the axis
+  Vec3d intensity;  // on the axis
+  double cosInner = 1;  // cos of the inner half-angle: full intensity inside
+  double cosOuter = 0;  // cos of the outer half-angle: zero outside; cosOuter <= cosInner
+};
+
+struct DirectionalLight {
+  Vec3d direction;   // unit, the direction light travels (into the scene)
+  Vec3d irradiance;  // on a surface facing the light
+  double cosHalfAngle = 1;  // cos of the source's angular radius; 1 = delta light
+};
+
+// Parallelogram corner + s edge1 + t edge2, s, t in [0, 1].
+struct RectLight {
+  Vec3d corner, edge1, edge2;
+  Vec3d radiance;
+  bool twoSided = false;  // else emits on the side of edge1 x edge2
+};
+
+struct DiskLight {
+  Vec3d center;
+  Vec3d normal;  // unit, the emitting side
+  double radius = 0;
+  Vec3d radiance;
+  bool twoSided = false;
+};
+
+struct SphereLight {
+  Vec3d center;
+  double radius = 0;
+  Vec3d radiance;
+};
+
+using Light =
+    std::variant<PointLight, SpotLight, DirectionalLight, RectLight, DiskLight, SphereLight>;
+
+// A lat-long HDR image, 32-bit float RGB, as stored in the file (row 0 is the image's top).
+// Pixel <-> map direction follows Imf::LatLongMap over the data window; `worldFromMap` turns map
+// directions into world directions (the job's `up` and `rotationDeg`), `scale` multiplies radiance.
+struct EnvironmentMap {
+  int width = 0, height = 0;
+  int dataWindowMinX = 0, dataWindowMinY = 0;  // OpenEXR data window origin
+  std::vector<float> rgb;                      // width * height * 3, row-major
+  double scale = 1;
+  Mat3d worldFromMap;  // a rotation
+  std::string digest;  // sha256 of the file's bytes, for logs and caches
+};
+
+struct Environment {
+  enum class Kind { kNone, kUniform, kMap };
+  Kind kind = Kind::kNone;
+  Vec3d radiance;                             // kUniform
+  std::shared_ptr<const EnvironmentMap> map;  // kMap
+};
+
+// Homogeneous medium filling `bounds`; vacuum outside.
+struct Medium {
+  Vec3d sigmaA, sigmaS;  // per scene unit
+  double g = 0;          // Henyey-Greenstein mean cosine, (-1, 1)
+  Vec3d boundsMin, boundsMax;
+};
+
+struct Scene {
+  std::vector<Material> materials;
+  std::vector<TriangleMesh> meshes;
+  std::vector<Light> lights;
+  Environment environment;
+  std::optional<Medium> medium;
+};
+
+enum class Placement { kAll, kOutsideGeometry, kNearSurfaces };
+
+// Probe (i, j, k) sits at origin + spacing * (i, j, k); linear index i + nx (j + ny k).
+struct ProbeGrid {
+  Vec3d origin;   // the grid's min corner
+  Vec3d spacing;  // > 0 per axis
+  int counts[3] = {1, 1, 1};
+  Placement placement = Placement::kOutsideGeometry;
+  double surfaceDistance = 0;  // kNearSurfaces only
+
+  int64_t ProbeCount() const { return int64_t(counts[0]) * counts[1] * counts[2]; }
+  int64_t LinearIndex(int i, int j, int k) const {
+    return i + int64_t(counts[0]) * (j + int64_t(counts[1]) * k);
+  }
+  void Coords(int64_t index, int* i, int* j, int* k) const {
+    *i = int(index % counts[0]);
+    *j = int((index / counts[0]) % counts[1]);
+    *k = int(index / (int64_t(counts[0]) * counts[1]));
+  }
+  Vec3d Position(int i, int j, int k) const {
+    return {origin.x + spacing.x * i, origin.y + spacing.y * j, origin.z + spacing.z * k};
+  }
+};
+
+enum class ShWindow { kNone, kHanning, kLanczos, kAuto };
+enum class Estimator { kNeeMis, kLightSampling, kDirectionSampling };
+enum class SamplerKind { kSobol, kIndependent };
+
+// Settings with every default and preset resolved.
+struct BakeSettings {
+  int shOrder = 2;
+  int64_t samplesPerProbe = 1024;
+  int maxDepth = 8;
+  double targetRelError = 0;
+  uint64_t seed = 1;
+  bool irradiance = false;
+  ShWindow window = ShWindow::kNone;
+  double windowWidth = 3;
+  Estimator estimator = Estimator::kNeeMis;
+  SamplerKind sampler = SamplerKind::kSobol;
+  bool russianRoulette = true;
+  int rrMinDepth = 3;
+  int batches = 16;
+  double backfaceFraction = 0.5;
+};
+
+// A job ready to bake.
+struct BakeJob {
+  Scene scene;
+  ProbeGrid grid;
+  BakeSettings settings;
+  std::string sceneDigest;   // sha256 hex of the canonical scene (assets by content digest)
+  std::string jobDigest;     // sha256 hex of the canonical job + kBakerVersion (the cache key)
+  std::string settingsJson;  // the resolved settings as JSON, recorded in the volume
+};
+
+}  // namespace probebake

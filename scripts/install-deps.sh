@@ -1,0 +1,39 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages probebake needs to build, test and run (as root, or with sudo).
+# Idempotent and quick when everything is present: it asks dpkg first and calls apt-get only for
+# what is missing.
+set -euo pipefail
+
+PACKAGES=(
+  # toolchain
+  cmake ninja-build g++ pkg-config git ca-certificates
+  # RPC and data formats
+  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev libssl-dev
+  # rendering and volumes
+  libembree-dev libopenvdb-dev libboost-iostreams-dev libopenexr-dev libassimp-dev libpng-dev
+  # runtime services
+  libspdlog-dev libtbb-dev libsqlite3-dev libcli11-dev
+  # tests and benchmarks
+  libgtest-dev libbenchmark-dev
+  # Python-side interop tests (Debian's interpreter: /usr/bin/python3)
+  python3 python3-grpcio python3-protobuf python3-numpy python3-openvdb
+)
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if ((${#missing[@]} == 0)); then
+  echo "install-deps: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO=sudo; fi
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
