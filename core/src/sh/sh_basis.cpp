@@ -4,22 +4,13 @@
 #include <limits>
 #include <type_traits>
 
+#include "constexpr_sqrt.h"
 #include "probebake/base/check.h"
 
 namespace probebake {
 namespace {
 
-// sqrt for constant tables: Newton's iteration from above, which decreases monotonically to
-// within one ulp of the true root; the loop stops when it no longer decreases.
-constexpr double ConstexprSqrt(double a) {
-  if (a <= 0) return 0;
-  double x = a > 1 ? a : 1;
-  for (;;) {
-    const double next = 0.5 * (x + a / x);
-    if (next >= x) return x;
-    x = next;
-  }
-}
+using sh_internal::ConstexprSqrt;
 
 // Coefficients of the fully normalised recurrence for Q_l^m = Y_l±m / sin^m θ with the azimuthal
 // factor (cos mφ, sin mφ) removed (m >= 0; for m > 0 it includes the sqrt(2) of real SH):
