@@ -1,0 +1,168 @@
+#include "server/checkpoint.h"
+
+#include <cstring>
+#include <type_traits>
+
+#include "absl/strings/str_cat.h"
+#include "probebake/base/status.h"
+#include "probebake/job/digest.h"
+#include "server/file_util.h"
+
+namespace probebake::server {
+namespace {
+
+constexpr char kMagic[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '1'};
+constexpr size_t kHashHexBytes = 64;
+
+class Writer {
+ public:
+  template <typename T>
+  void Pod(const T& v) {
+    static_assert(std::is_trivially_copyable_v<T>);
+    bytes_.append(reinterpret_cast<const char*>(&v), sizeof(T));
+  }
+  void String(const std::string& s) {
+    Pod(uint64_t(s.size()));
+    bytes_.append(s);
+  }
+  template <typename T>
+  void Vector(const std::vector<T>& v) {
+    Pod(uint64_t(v.size()));
+    bytes_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+  }
+  std::string& bytes() { return bytes_; }
+
+ private:
+  std::string bytes_;
+};
+
+class Reader {
+ public:
+  explicit Reader(std::string_view bytes) : bytes_(bytes) {}
+  template <typename T>
+  bool Pod(T* v) {
+    if (bytes_.size() < sizeof(T)) return false;
+    std::memcpy(v, bytes_.data(), sizeof(T));
+    bytes_.remove_prefix(sizeof(T));
+    return true;
+  }
+  bool String(std::string* s) {
+    uint64_t n;
+    if (!Pod(&n) || n > bytes_.size()) return false;
+    s->assign(bytes_.data(), size_t(n));
+    bytes_.remove_prefix(size_t(n));
+    return true;
+  }
+  template <typename T>
+  bool Vector(std::vector<T>* v) {
+    uint64_t n;
+    if (!Pod(&n) || n > bytes_.size() / sizeof(T)) return false;
+    v->resize(size_t(n));
+    std::memcpy(v->data(), bytes_.data(), size_t(n) * sizeof(T));
+    bytes_.remove_prefix(size_t(n) * sizeof(T));
+    return true;
+  }
+  bool AtEnd() const { return bytes_.empty(); }
+
+ private:
+  std::string_view bytes_;
+};
+
+void WriteVolume(const ProbeVolume& v, Writer* w) {
+  w->Pod(v.grid.origin);
+  w->Pod(v.grid.spacing);
+  for (int a = 0; a < 3; ++a) w->Pod(int32_t(v.grid.counts[a]));
+  w->Pod(int32_t(v.grid.placement));
+  w->Pod(v.grid.surfaceDistance);
+  w->Pod(int32_t(v.shOrder));
+  w->Vector(v.active);
+  for (const auto* planes : {&v.radiance, &v.irradiance}) {
+    w->Pod(uint64_t(planes->size()));
+    for (const std::vector<float>& plane : *planes) w->Vector(plane);
+  }
+  w->Vector(v.validity);
+  w->Vector(v.stdError);
+  w->Vector(v.sampleCount);
+  w->String(v.window);
+  w->Pod(v.stats.wallSeconds);
+  w->Pod(int32_t(v.stats.threads));
+  w->Pod(v.stats.probes);
+  w->Pod(v.stats.samples);
+  w->Pod(v.stats.rays);
+  w->Pod(v.stats.invalidProbes);
+}
+
+bool ReadVolume(Reader* r, ProbeVolume* v) {
+  int32_t counts[3], placement, shOrder, threads;
+  if (!r->Pod(&v->grid.origin) || !r->Pod(&v->grid.spacing)) return false;
+  for (int a = 0; a < 3; ++a) {
+    if (!r->Pod(&counts[a]) || counts[a] < 1) return false;
+    v->grid.counts[a] = counts[a];
+  }
+  if (!r->Pod(&placement) || placement < 0 || placement > int32_t(Placement::kNearSurfaces))
+    return false;
+  v->grid.placement = Placement(placement);
+  if (!r->Pod(&v->grid.surfaceDistance) || !r->Pod(&shOrder) || shOrder < 0) return false;
+  v->shOrder = shOrder;
+  if (!r->Vector(&v->active)) return false;
+  for (auto* planes : {&v->radiance, &v->irradiance}) {
+    uint64_t n;
+    if (!r->Pod(&n) || n > 1024) return false;
+    planes->resize(size_t(n));
+    for (std::vector<float>& plane : *planes)
+      if (!r->Vector(&plane)) return false;
+  }
+  if (!r->Vector(&v->validity) || !r->Vector(&v->stdError) || !r->Vector(&v->sampleCount) ||
+      !r->String(&v->window))
+    return false;
+  if (!r->Pod(&v->stats.wallSeconds) || !r->Pod(&threads) || !r->Pod(&v->stats.probes) ||
+      !r->Pod(&v->stats.samples) || !r->Pod(&v->stats.rays) || !r->Pod(&v->stats.invalidProbes))
+    return false;
+  v->stats.threads = threads;
+  return true;
+}
+
+}  // namespace
+
+int64_t Checkpoint::DoneCount() const {
+  int64_t n = 0;
+  for (uint8_t d : done) n += d != 0;
+  return n;
+}
+
+absl::Status WriteCheckpoint(const std::filesystem::path& path, const std::string& jobDigest,
+                             const ProbeVolume& volume, const std::vector<uint8_t>& done) {
+  Writer w;
+  w.bytes().append(kMagic, sizeof(kMagic));
+  w.String(jobDigest);
+  WriteVolume(volume, &w);
+  w.Vector(done);
+  std::string hash = Sha256Hex(w.bytes());
+  w.bytes().append(hash);
+  return WriteFileAtomic(path, w.bytes());
+}
+
+absl::StatusOr<Checkpoint> ReadCheckpoint(const std::filesystem::path& path,
+                                          const std::string& expectedJobDigest) {
+  PB_ASSIGN_OR_RETURN(std::string bytes, ReadWholeFile(path));
+  auto corrupt = [&](std::string_view why) {
+    return absl::DataLossError(absl::StrCat("checkpoint ", path.string(), ": ", std::string(why)));
+  };
+  if (bytes.size() < sizeof(kMagic) + kHashHexBytes ||
+      std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0)
+    return corrupt("not a probebake checkpoint");
+  std::string_view body(bytes.data(), bytes.size() - kHashHexBytes);
+  if (Sha256Hex(body) != std::string_view(bytes).substr(body.size()))
+    return corrupt("checksum mismatch (torn or corrupt file)");
+  Reader r(body.substr(sizeof(kMagic)));
+  Checkpoint c;
+  if (!r.String(&c.jobDigest) || !ReadVolume(&r, &c.volume) || !r.Vector(&c.done) || !r.AtEnd())
+    return corrupt("malformed contents");
+  if (c.jobDigest != expectedJobDigest)
+    return corrupt(absl::StrCat("made for job digest ", c.jobDigest, ", not ", expectedJobDigest));
+  if (int64_t(c.done.size()) != c.volume.grid.ProbeCount())
+    return corrupt("done flags do not match the grid");
+  return c;
+}
+
+}  // namespace probebake::server

@@ -1,0 +1,696 @@
+#include "server/job_manager.h"
+
+#include <openssl/rand.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <exception>
+
+#include <google/protobuf/util/time_util.h>
+
+#include "absl/strings/escaping.h"
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "probebake/base/check.h"
+#include "probebake/base/log.h"
+#include "probebake/base/status.h"
+#include "probebake/job/file_refs.h"
+#include "probebake/job/validate.h"
+#include "server/blob_store.h"
+#include "server/checkpoint.h"
+#include "server/job_store.h"
+
+namespace probebake::server {
+namespace {
+
+using google::protobuf::util::TimeUtil;
+
+constexpr absl::string_view kNamePrefix = "bakeJobs/";
+constexpr size_t kIdLength = 16;
+constexpr size_t kMaxRequestIdLength = 128;
+
+google::protobuf::Timestamp Now() {
+  return TimeUtil::GetCurrentTime();
+}
+
+google::protobuf::Duration SecondsToDuration(double seconds) {
+  return TimeUtil::NanosecondsToDuration(int64_t(std::llround(seconds * 1e9)));
+}
+
+std::string NewJobName() {
+  unsigned char bytes[kIdLength / 2];
+  PB_CHECK(RAND_bytes(bytes, sizeof(bytes)) == 1);
+  return absl::StrCat(kNamePrefix, absl::BytesToHexString(absl::string_view(
+                                       reinterpret_cast<const char*>(bytes), sizeof(bytes))));
+}
+
+// A name quoted for a message, bounded and escaped (it is client input).
+std::string Quoted(absl::string_view text) {
+  std::string shown = absl::CHexEscape(text.substr(0, 80));
+  if (text.size() > 80) shown += "...";
+  return absl::StrCat("\"", shown, "\"");
+}
+
+v1::BakeJobError ErrorOf(const absl::Status& status, std::string_view stage) {
+  v1::BakeJobError error;
+  error.set_code(int(status.code()));
+  error.set_message(std::string(status.message()));
+  (*error.mutable_details())["stage"] = std::string(stage);
+  if (absl::IsInvalidArgument(status)) {
+    std::string message(status.message());
+    size_t colon = message.find(": ");
+    if (colon != std::string::npos && message.find_first_of(" \n") > colon)
+      (*error.mutable_details())["field"] = message.substr(0, colon);
+  }
+  return error;
+}
+
+std::string PageToken(int64_t afterSeq) {
+  return absl::WebSafeBase64Escape(absl::StrCat("after:", afterSeq));
+}
+
+absl::StatusOr<int64_t> ParsePageToken(const std::string& token) {
+  if (token.empty()) return 0;
+  std::string decoded;
+  int64_t seq = 0;
+  if (!absl::WebSafeBase64Unescape(token, &decoded) || decoded.rfind("after:", 0) != 0 ||
+      !absl::SimpleAtoi(absl::string_view(decoded).substr(6), &seq) || seq < 0)
+    return FieldError("pageToken", "not a token this server issued");
+  return seq;
+}
+
+}  // namespace
+
+bool IsFinal(v1::BakeJob::State state) {
+  return state == v1::BakeJob::SUCCEEDED || state == v1::BakeJob::FAILED ||
+         state == v1::BakeJob::CANCELLED;
+}
+
+JobManager::JobManager(JobManagerConfig config, BlobStore* blobs, JobStore* store,
+                       BakeBackend backend)
+    : config_(std::move(config)),
+      blobs_(blobs),
+      store_(store),
+      backend_(std::move(backend)),
+      arena_(std::max(1, config_.maxConcurrentJobs) + 1, 1) {
+  PB_CHECK_GE(config_.maxConcurrentJobs, 1);
+  PB_CHECK_GE(config_.maxQueuedJobs, 1);
+  // Every running job holds one worker for its task and asks Bake for threadsPerJob threads;
+  // TBB's default pool (hardware threads - 1 workers) would leave concurrent bakes starved.
+  int perJob =
+      config_.threadsPerJob > 0 ? config_.threadsPerJob : tbb::this_task_arena::max_concurrency();
+  size_t wanted = size_t(config_.maxConcurrentJobs) * size_t(std::max(1, perJob)) + 1;
+  if (wanted > tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism))
+    parallelism_ =
+        std::make_unique<tbb::global_control>(tbb::global_control::max_allowed_parallelism, wanted);
+}
+
+JobManager::~JobManager() {
+  Shutdown();
+}
+
+std::filesystem::path JobManager::CheckpointPath(const std::string& name) const {
+  return config_.dataDir / "checkpoints" / absl::StrCat(name.substr(kNamePrefix.size()), ".ckpt");
+}
+
+absl::Status JobManager::Start() {
+  std::error_code ec;
+  std::filesystem::create_directories(config_.dataDir / "checkpoints", ec);
+  if (ec) return absl::InternalError(absl::StrCat("create checkpoints folder: ", ec.message()));
+  // The server stopped while these ran: queue them again, ahead of the jobs queued after them
+  // (creation order), to resume from their checkpoints.
+  PB_ASSIGN_OR_RETURN(std::vector<StoredJob> interrupted,
+                      store_->ListInState(v1::BakeJob::RUNNING));
+  for (StoredJob& job : interrupted) {
+    job.record.set_state(v1::BakeJob::QUEUED);
+    *job.record.mutable_update_time() = Now();
+    PB_RETURN_IF_ERROR(store_->Update(job.record));
+    Logger("jobs")->info("{}: requeued (it was running when the server stopped)",
+                         job.record.name());
+  }
+  PB_ASSIGN_OR_RETURN(std::vector<StoredJob> queued, store_->ListInState(v1::BakeJob::QUEUED));
+  std::lock_guard lock(mutex_);
+  for (const StoredJob& job : queued) queue_.push_back(job.record.name());
+  if (!queued.empty()) Logger("jobs")->info("{} queued job(s) recovered", queued.size());
+  started_ = true;
+  dispatcher_ = std::thread([this] { DispatchLoop(); });
+  return absl::OkStatus();
+}
+
+void JobManager::Shutdown() {
+  {
+    std::lock_guard lock(mutex_);
+    draining_ = true;
+    if (stopping_) return;
+    stopping_ = true;
+    for (auto& [name, job] : running_) {
+      int none = int(CancelReason::kNone);
+      job->reason.compare_exchange_strong(none, int(CancelReason::kShutdown));
+      job->cancel = true;
+      Logger("jobs")->info("{}: stopping for shutdown (will resume after restart)", name);
+    }
+  }
+  wake_.notify_all();
+  if (dispatcher_.joinable()) dispatcher_.join();
+  auto start = std::chrono::steady_clock::now();
+  {
+    std::unique_lock lock(mutex_);
+    jobsIdle_.wait(lock, [&] { return running_.empty(); });
+  }
+  arena_.execute([&] { tasks_.wait(); });
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  Logger("jobs")->info("job workers stopped in {:.3f} s", seconds);
+  std::lock_guard lock(mutex_);
+  for (auto& [name, subscriber] : subscribers_)
+    subscriber->OnJobGone(
+        absl::UnavailableError("the server is shutting down; watch the job again once it is back"));
+  subscribers_.clear();
+}
+
+absl::StatusOr<std::string> JobManager::CheckName(const std::string& name) const {
+  bool ok = name.size() == kNamePrefix.size() + kIdLength && absl::StartsWith(name, kNamePrefix) &&
+            std::all_of(name.begin() + kNamePrefix.size(), name.end(),
+                        [](char c) { return (c >= '0' && c <= '9') || (c >= 'a' && c <= 'f'); });
+  if (!ok)
+    return FieldError("name",
+                      absl::StrCat("expected \"bakeJobs/<16 hex digits>\", got ", Quoted(name)));
+  return name;
+}
+
+absl::Status JobManager::ValidateForServer(const v1::JobSpec& spec) const {
+  std::vector<std::string> refusals;
+  for (const FileReference& ref : ListFileReferences(spec))
+    refusals.push_back(ClientPathRefusal(ref.fieldPath));
+  if (!refusals.empty()) return absl::InvalidArgumentError(absl::StrJoin(refusals, "\n"));
+  PB_RETURN_IF_ERROR(ValidateJobSpec(spec, config_.limits));
+
+  std::vector<std::string> missing;
+  auto check = [&](const v1::Digest& digest, const std::string& field) {
+    if (!blobs_->Contains(digest))
+      missing.push_back(absl::StrCat(field, " ", DigestString(digest)));
+  };
+  for (int i = 0; i < spec.scene().meshes_size(); ++i)
+    if (spec.scene().meshes(i).has_blob())
+      check(spec.scene().meshes(i).blob(), absl::StrCat("scene.meshes[", i, "].blob"));
+  if (spec.scene().environment().has_map() && spec.scene().environment().map().has_blob())
+    check(spec.scene().environment().map().blob(), "scene.environment.map.blob");
+  if (!missing.empty())
+    return absl::FailedPreconditionError(absl::StrCat(
+        "missing blobs (upload them with WriteBlob, then retry): ", absl::StrJoin(missing, "; ")));
+  return absl::OkStatus();
+}
+
+int64_t JobManager::RetryDelayMsLocked() const {
+  // A queue slot frees when a running job ends: the soonest ETA, within [1 s, 60 s].
+  double soonest = 5.0;
+  bool known = false;
+  for (const auto& [name, job] : running_) {
+    if (!job->record.progress().has_eta()) continue;
+    double eta = TimeUtil::DurationToMilliseconds(job->record.progress().eta()) / 1000.0;
+    soonest = known ? std::min(soonest, eta) : eta;
+    known = true;
+  }
+  return int64_t(std::clamp(soonest, 1.0, 60.0) * 1000);
+}
+
+absl::StatusOr<v1::BakeJob> JobManager::CreateJob(const v1::CreateBakeJobRequest& request) {
+  auto unavailable = [] {
+    return absl::UnavailableError("the server is shutting down; submit again once it is back");
+  };
+  if (draining_) return unavailable();
+  const std::string& requestId = request.request_id();
+  if (requestId.size() > kMaxRequestIdLength)
+    return FieldError("requestId",
+                      absl::StrCat("longer than ", kMaxRequestIdLength, " characters"));
+  if (!std::all_of(requestId.begin(), requestId.end(),
+                   [](char c) { return c >= 0x20 && c < 0x7f; }))
+    return FieldError("requestId", "only printable ASCII characters are allowed");
+  // mutex_ held.
+  auto findRequest = [&]() -> absl::StatusOr<std::optional<v1::BakeJob>> {
+    if (requestId.empty()) return std::optional<v1::BakeJob>();
+    PB_ASSIGN_OR_RETURN(std::optional<StoredJob> existing, store_->FindByRequestId(requestId));
+    if (!existing) return std::optional<v1::BakeJob>();
+    return LoadLocked(existing->record.name(), false);
+  };
+  {
+    std::lock_guard lock(mutex_);
+    PB_ASSIGN_OR_RETURN(std::optional<v1::BakeJob> existing, findRequest());
+    if (existing) return *existing;
+  }
+  if (!request.has_job()) return FieldError("job", "required");
+  PB_RETURN_IF_ERROR(ValidateForServer(request.job()));
+  // Reads every asset, so a mesh or map that does not parse is refused now, not mid-bake; the
+  // built job also gives the digest that keys the result cache.
+  PB_ASSIGN_OR_RETURN(BakeJob built, backend_.build(request.job()));
+
+  std::lock_guard lock(mutex_);
+  if (draining_) return unavailable();
+  {
+    PB_ASSIGN_OR_RETURN(std::optional<v1::BakeJob> existing, findRequest());
+    if (existing) return *existing;  // the same request id raced with this one
+  }
+  v1::BakeJob record;
+  record.set_request_id(requestId);
+  record.set_job_digest(built.jobDigest);
+  record.set_skip_cache(request.skip_cache());
+  *record.mutable_create_time() = Now();
+  *record.mutable_update_time() = record.create_time();
+
+  std::optional<v1::BakeJobResult> cached;
+  if (!request.skip_cache()) {
+    PB_ASSIGN_OR_RETURN(cached, store_->GetCached(built.jobDigest));
+    if (cached && !blobs_->Contains(cached->volume())) {
+      Logger("jobs")->warn("result cache entry {} refers to missing volume {}; dropped",
+                           built.jobDigest, DigestString(cached->volume()));
+      PB_RETURN_IF_ERROR(store_->DeleteCached(built.jobDigest));
+      cached.reset();
+    }
+  }
+  if (cached) {
+    record.set_state(v1::BakeJob::SUCCEEDED);
+    *record.mutable_result() = *cached;
+    record.mutable_result()->set_cached_result(true);
+    v1::BakeJobProgress* progress = record.mutable_progress();
+    progress->set_probes_done(cached->stats().probes());
+    progress->set_probes_total(cached->stats().probes());
+    progress->set_samples(cached->stats().samples());
+    progress->set_rays(cached->stats().rays());
+    *record.mutable_end_time() = record.create_time();
+  } else {
+    if (int64_t(queue_.size()) >= config_.maxQueuedJobs) {
+      int64_t retryMs = RetryDelayMsLocked();
+      absl::Status full = absl::ResourceExhaustedError(
+          absl::StrCat("the job queue is full (", queue_.size(), " queued, ", running_.size(),
+                       " running); retry in ", retryMs, " ms"));
+      full.SetPayload(kRetryAfterPayload, absl::Cord(absl::StrCat(retryMs)));
+      return full;
+    }
+    record.set_state(v1::BakeJob::QUEUED);
+  }
+  // Ids are random: a collision is astronomically unlikely, but costs only a retry.
+  absl::Status inserted;
+  for (int attempt = 0; attempt < 4; ++attempt) {
+    record.set_name(NewJobName());
+    inserted = store_->Insert(record, request.job());
+    if (!absl::IsAlreadyExists(inserted)) break;
+  }
+  PB_RETURN_IF_ERROR(inserted);
+  if (cached) {
+    Logger("jobs")->info("{}: served from the result cache (volume {}, baked by {})", record.name(),
+                         DigestString(cached->volume()), cached->source_job());
+  } else {
+    queue_.push_back(record.name());
+    Logger("jobs")->info("{}: queued (job digest {}, {} probes, position {})", record.name(),
+                         built.jobDigest, built.grid.ProbeCount(), queue_.size());
+    wake_.notify_one();
+  }
+  return record;
+}
+
+absl::StatusOr<std::optional<v1::BakeJob>> JobManager::LoadLocked(const std::string& name,
+                                                                  bool full) {
+  v1::BakeJob record;
+  auto running = running_.find(name);
+  if (running != running_.end()) {
+    record = running->second->record;
+  } else {
+    PB_ASSIGN_OR_RETURN(std::optional<StoredJob> stored, store_->Get(name));
+    if (!stored) return std::optional<v1::BakeJob>();
+    record = std::move(stored->record);
+  }
+  if (full) {
+    PB_ASSIGN_OR_RETURN(std::optional<v1::JobSpec> spec, store_->GetSpec(name));
+    if (spec) *record.mutable_job() = std::move(*spec);
+  }
+  return std::optional<v1::BakeJob>(std::move(record));
+}
+
+absl::StatusOr<v1::BakeJob> JobManager::GetJob(const std::string& name, v1::BakeJobView view) {
+  PB_RETURN_IF_ERROR(CheckName(name).status());
+  std::lock_guard lock(mutex_);
+  PB_ASSIGN_OR_RETURN(std::optional<v1::BakeJob> job, LoadLocked(name, view != v1::BASIC));
+  if (!job) return absl::NotFoundError(absl::StrCat(name, ": no such job"));
+  return *job;
+}
+
+absl::StatusOr<v1::ListBakeJobsResponse> JobManager::ListJobs(
+    const v1::ListBakeJobsRequest& request) {
+  if (request.page_size() < 0) return FieldError("pageSize", "must be >= 0");
+  int pageSize = request.page_size() == 0 ? config_.defaultPageSize
+                                          : std::min(request.page_size(), config_.maxPageSize);
+  PB_ASSIGN_OR_RETURN(int64_t afterSeq, ParsePageToken(request.page_token()));
+  bool full = request.view() == v1::FULL;
+  std::lock_guard lock(mutex_);
+  PB_ASSIGN_OR_RETURN(std::vector<StoredJob> jobs, store_->List(afterSeq, pageSize + 1));
+  v1::ListBakeJobsResponse response;
+  for (size_t i = 0; i < jobs.size() && int(i) < pageSize; ++i) {
+    v1::BakeJob* out = response.add_bake_jobs();
+    auto running = running_.find(jobs[i].record.name());
+    *out = running != running_.end() ? running->second->record : jobs[i].record;
+    if (full) {
+      PB_ASSIGN_OR_RETURN(std::optional<v1::JobSpec> spec, store_->GetSpec(out->name()));
+      if (spec) *out->mutable_job() = std::move(*spec);
+    }
+  }
+  if (int(jobs.size()) > pageSize) response.set_next_page_token(PageToken(jobs[pageSize - 1].seq));
+  return response;
+}
+
+absl::StatusOr<v1::BakeJob> JobManager::CancelJob(const std::string& name) {
+  PB_RETURN_IF_ERROR(CheckName(name).status());
+  std::lock_guard lock(mutex_);
+  auto running = running_.find(name);
+  if (running != running_.end()) {
+    RunningJob& job = *running->second;
+    int none = int(CancelReason::kNone);
+    job.reason.compare_exchange_strong(none, int(CancelReason::kUser));
+    job.cancel = true;
+    if (!job.record.cancel_requested()) {
+      job.record.set_cancel_requested(true);
+      *job.record.mutable_update_time() = Now();
+      PB_RETURN_IF_ERROR(store_->Update(job.record));
+      Logger("jobs")->info("{}: cancellation requested", name);
+      NotifyLocked(job.record);
+    }
+    return job.record;
+  }
+  PB_ASSIGN_OR_RETURN(std::optional<StoredJob> stored, store_->Get(name));
+  if (!stored) return absl::NotFoundError(absl::StrCat(name, ": no such job"));
+  v1::BakeJob record = std::move(stored->record);
+  if (IsFinal(record.state())) return record;
+  // Queued (running jobs are all in running_).
+  record.set_state(v1::BakeJob::CANCELLED);
+  record.set_cancel_requested(true);
+  *record.mutable_error() =
+      ErrorOf(absl::CancelledError("cancelled by CancelBakeJob before it ran"), "queue");
+  *record.mutable_update_time() = Now();
+  *record.mutable_end_time() = record.update_time();
+  PB_RETURN_IF_ERROR(store_->Update(record));
+  queue_.erase(std::remove(queue_.begin(), queue_.end(), name), queue_.end());
+  std::error_code ec;
+  std::filesystem::remove(CheckpointPath(name), ec);
+  Logger("jobs")->info("{}: cancelled while queued", name);
+  NotifyLocked(record);
+  return record;
+}
+
+absl::Status JobManager::DeleteJob(const std::string& name) {
+  PB_RETURN_IF_ERROR(CheckName(name).status());
+  std::lock_guard lock(mutex_);
+  if (running_.count(name))
+    return absl::FailedPreconditionError(
+        absl::StrCat(name, ": the job is running; cancel it first"));
+  PB_ASSIGN_OR_RETURN(bool existed, store_->Delete(name));
+  if (!existed) return absl::NotFoundError(absl::StrCat(name, ": no such job"));
+  queue_.erase(std::remove(queue_.begin(), queue_.end(), name), queue_.end());
+  std::error_code ec;
+  std::filesystem::remove(CheckpointPath(name), ec);
+  EndSubscribersLocked(name, absl::NotFoundError(absl::StrCat(name, " was deleted; resubmit")));
+  Logger("jobs")->info("{}: deleted", name);
+  return absl::OkStatus();
+}
+
+absl::Status JobManager::Subscribe(const std::string& name,
+                                   std::shared_ptr<JobSubscriber> subscriber) {
+  PB_RETURN_IF_ERROR(CheckName(name).status());
+  std::lock_guard lock(mutex_);
+  PB_ASSIGN_OR_RETURN(std::optional<v1::BakeJob> job, LoadLocked(name, false));
+  if (!job) return absl::NotFoundError(absl::StrCat(name, ": no such job; resubmit"));
+  if (!IsFinal(job->state()) && stopping_)
+    return absl::UnavailableError("the server is shutting down; watch again once it is back");
+  subscriber->OnJobUpdate(*job);
+  if (!IsFinal(job->state())) subscribers_.emplace(name, std::move(subscriber));
+  return absl::OkStatus();
+}
+
+void JobManager::NotifyLocked(const v1::BakeJob& record) {
+  auto [begin, end] = subscribers_.equal_range(record.name());
+  for (auto it = begin; it != end;) {
+    if (it->second->Detached()) {
+      it = subscribers_.erase(it);
+      continue;
+    }
+    it->second->OnJobUpdate(record);
+    ++it;
+  }
+  if (IsFinal(record.state())) subscribers_.erase(record.name());
+}
+
+void JobManager::EndSubscribersLocked(const std::string& name, const absl::Status& status) {
+  auto [begin, end] = subscribers_.equal_range(name);
+  for (auto it = begin; it != end; ++it) it->second->OnJobGone(status);
+  subscribers_.erase(begin, end);
+}
+
+void JobManager::DispatchLoop() {
+  std::unique_lock lock(mutex_);
+  while (true) {
+    wake_.wait(lock, [&] {
+      return stopping_ || (!queue_.empty() && int(running_.size()) < config_.maxConcurrentJobs);
+    });
+    if (stopping_) return;
+    std::string name = queue_.front();
+    queue_.erase(queue_.begin());
+    absl::StatusOr<std::optional<StoredJob>> stored = store_->Get(name);
+    if (!stored.ok() || !*stored) {
+      Logger("jobs")->error("{}: cannot start: {}", name,
+                            stored.ok() ? "gone" : std::string(stored.status().message()));
+      continue;
+    }
+    auto job = std::make_shared<RunningJob>();
+    job->name = name;
+    job->record = std::move((*stored)->record);
+    v1::BakeJob& record = job->record;
+    record.set_state(v1::BakeJob::RUNNING);
+    record.set_attempts(record.attempts() + 1);
+    *record.mutable_start_time() = Now();
+    *record.mutable_update_time() = record.start_time();
+    record.mutable_progress()->clear_elapsed();
+    record.mutable_progress()->clear_eta();
+    if (absl::Status updated = store_->Update(record); !updated.ok()) {
+      // The job stays QUEUED on disk and is retried after a restart; a store that cannot write
+      // cannot run jobs either.
+      Logger("jobs")->error("{}: cannot start: {}", name, std::string(updated.message()));
+      continue;
+    }
+    running_[name] = job;
+    NotifyLocked(record);
+    Logger("jobs")->info("{}: running (attempt {})", name, record.attempts());
+    arena_.execute([&] { tasks_.run([this, job] { RunJob(job); }); });
+  }
+}
+
+void JobManager::RunJob(const std::shared_ptr<RunningJob>& job) {
+  Outcome outcome;
+  try {
+    outcome = Execute(*job);
+  } catch (const std::exception& e) {
+    outcome.state = v1::BakeJob::FAILED;
+    outcome.error = ErrorOf(absl::InternalError(absl::StrCat("bake failed: ", e.what())), "bake");
+  } catch (...) {
+    outcome.state = v1::BakeJob::FAILED;
+    outcome.error = ErrorOf(absl::InternalError("bake failed: unknown exception"), "bake");
+  }
+  Finish(*job, outcome);
+}
+
+JobManager::Outcome JobManager::Execute(RunningJob& job) {
+  Outcome outcome;
+  auto fail = [&](const absl::Status& status, std::string_view stage) {
+    outcome.state = v1::BakeJob::FAILED;
+    outcome.error = ErrorOf(status, stage);
+    Logger("jobs")->warn("{}: failed ({}): {}", job.name, std::string(stage),
+                         std::string(status.message()));
+    return outcome;
+  };
+  auto cancelled = [&] {
+    if (job.reason.load() == int(CancelReason::kShutdown)) {
+      outcome.state = v1::BakeJob::QUEUED;
+    } else {
+      outcome.state = v1::BakeJob::CANCELLED;
+      outcome.error = ErrorOf(absl::CancelledError("cancelled by CancelBakeJob"), "bake");
+    }
+    return outcome;
+  };
+
+  absl::StatusOr<std::optional<v1::JobSpec>> spec = store_->GetSpec(job.name);
+  if (!spec.ok()) return fail(spec.status(), "load");
+  if (!*spec) return fail(absl::InternalError("the job's spec is gone from the store"), "load");
+  if (job.cancel) return cancelled();
+  absl::StatusOr<BakeJob> built = backend_.build(**spec);
+  if (!built.ok()) return fail(built.status(), "load");
+  std::string jobDigest;
+  {
+    std::lock_guard lock(mutex_);
+    if (job.record.job_digest() != built->jobDigest) {
+      // The baker changed since the job was accepted: its digest (and any checkpoint) is stale.
+      Logger("jobs")->warn("{}: job digest changed from {} to {}", job.name,
+                           job.record.job_digest(), built->jobDigest);
+      job.record.set_job_digest(built->jobDigest);
+    }
+    jobDigest = job.record.job_digest();
+  }
+
+  std::filesystem::path checkpointPath = CheckpointPath(job.name);
+  std::optional<Checkpoint> checkpoint;
+  if (absl::StatusOr<Checkpoint> read = ReadCheckpoint(checkpointPath, jobDigest); read.ok()) {
+    checkpoint = std::move(*read);
+    job.probesResumed = checkpoint->DoneCount();
+    Logger("jobs")->info("{}: resuming from a checkpoint with {} of {} probes done", job.name,
+                         job.probesResumed, checkpoint->done.size());
+  } else if (!absl::IsNotFound(read.status())) {
+    Logger("jobs")->warn("{}: ignoring checkpoint: {}", job.name,
+                         std::string(read.status().message()));
+  }
+
+  BakeOptions options;
+  options.threads = config_.threadsPerJob;
+  options.cancel = &job.cancel;
+  options.progressIntervalSeconds = config_.progressIntervalSeconds;
+  options.progress = [&](const BakeProgress& progress) { OnProgress(job, progress); };
+  options.checkpointIntervalSeconds = config_.checkpointIntervalSeconds;
+  options.checkpoint = [&](const ProbeVolume& volume, const std::vector<uint8_t>& done) {
+    OnCheckpoint(job, jobDigest, volume, done);
+  };
+  if (checkpoint) {
+    options.resumeFrom = &checkpoint->volume;
+    options.resumeDone = &checkpoint->done;
+  }
+  if (job.cancel) return cancelled();
+  absl::StatusOr<ProbeVolume> volume = backend_.bake(*built, options);
+  checkpoint.reset();
+  if (!volume.ok()) {
+    if (absl::IsCancelled(volume.status()) && job.cancel) return cancelled();
+    return fail(volume.status(), "bake");
+  }
+
+  BakeStats stats = volume->stats;
+  std::filesystem::path tmp =
+      blobs_->tmpDir() / absl::StrCat(job.name.substr(kNamePrefix.size()), ".vdb");
+  if (absl::Status written =
+          backend_.writeVolume(tmp.string(), std::move(*volume), VolumeMetadataFor(*built));
+      !written.ok())
+    return fail(written, "store");
+  absl::StatusOr<v1::Digest> digest = blobs_->ImportFile(tmp);
+  if (!digest.ok()) return fail(digest.status(), "store");
+
+  outcome.state = v1::BakeJob::SUCCEEDED;
+  v1::BakeJobResult& result = outcome.result;
+  *result.mutable_volume() = *digest;
+  v1::BakeStats* s = result.mutable_stats();
+  s->set_wall_seconds(stats.wallSeconds);
+  s->set_threads(stats.threads);
+  s->set_probes(stats.probes);
+  s->set_samples(stats.samples);
+  s->set_rays(stats.rays);
+  s->set_invalid_probes(stats.invalidProbes);
+  result.set_cached_result(false);
+  result.set_source_job(job.name);
+  return outcome;
+}
+
+void JobManager::OnProgress(RunningJob& job, const BakeProgress& progress) {
+  std::lock_guard lock(mutex_);
+  v1::BakeJobProgress* p = job.record.mutable_progress();
+  p->set_probes_done(progress.probesDone);
+  p->set_probes_total(progress.probesTotal);
+  p->set_samples(progress.samples);
+  p->set_rays(progress.rays);
+  *p->mutable_elapsed() = SecondsToDuration(std::max(0.0, progress.elapsedSeconds));
+  if (progress.etaSeconds >= 0 && std::isfinite(progress.etaSeconds))
+    *p->mutable_eta() = SecondsToDuration(progress.etaSeconds);
+  else
+    p->clear_eta();
+  if (progress.errorEstimate >= 0 && std::isfinite(progress.errorEstimate))
+    p->set_error_estimate(progress.errorEstimate);
+  else
+    p->clear_error_estimate();
+  p->set_probes_resumed(job.probesResumed);
+  *job.record.mutable_update_time() = Now();
+  NotifyLocked(job.record);
+}
+
+void JobManager::OnCheckpoint(RunningJob& job, const std::string& jobDigest,
+                              const ProbeVolume& volume, const std::vector<uint8_t>& done) {
+  auto start = std::chrono::steady_clock::now();
+  absl::Status written = WriteCheckpoint(CheckpointPath(job.name), jobDigest, volume, done);
+  if (!written.ok()) {
+    Logger("jobs")->warn("{}: checkpoint not written: {}", job.name,
+                         std::string(written.message()));
+    return;
+  }
+  int64_t doneCount = std::count_if(done.begin(), done.end(), [](uint8_t d) { return d != 0; });
+  Logger("jobs")->debug(
+      "{}: checkpoint with {} of {} probes ({:.1f} ms)", job.name, doneCount, done.size(),
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  // Persist the progress too, so a job requeued after a crash shows where it was.
+  std::lock_guard lock(mutex_);
+  if (absl::Status updated = store_->Update(job.record); !updated.ok())
+    Logger("jobs")->warn("{}: progress not stored: {}", job.name, std::string(updated.message()));
+}
+
+void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
+  bool final = IsFinal(outcome.state);
+  bool committedOk = false;
+  {
+    std::lock_guard lock(mutex_);
+    v1::BakeJob& record = job.record;
+    record.set_state(outcome.state);
+    *record.mutable_update_time() = Now();
+    if (outcome.state == v1::BakeJob::SUCCEEDED) {
+      *record.mutable_result() = outcome.result;
+      v1::BakeJobProgress* p = record.mutable_progress();
+      p->set_probes_done(outcome.result.stats().probes());
+      p->set_probes_total(outcome.result.stats().probes());
+      p->set_samples(outcome.result.stats().samples());
+      p->set_rays(outcome.result.stats().rays());
+      p->clear_eta();
+    } else if (final) {
+      *record.mutable_error() = outcome.error;
+    }
+    if (final) *record.mutable_end_time() = record.update_time();
+    absl::Status committed = store_->Transaction([&]() -> absl::Status {
+      PB_RETURN_IF_ERROR(store_->Update(record));
+      if (outcome.state == v1::BakeJob::SUCCEEDED)
+        PB_RETURN_IF_ERROR(store_->PutCached(record.job_digest(), outcome.result));
+      return absl::OkStatus();
+    });
+    committedOk = committed.ok();
+    if (!committedOk) {
+      // On disk the job stays RUNNING, so a restart runs it again from its checkpoint.
+      Logger("jobs")->error("{}: final state not stored: {}", job.name,
+                            std::string(committed.message()));
+    }
+    switch (outcome.state) {
+      case v1::BakeJob::SUCCEEDED:
+        Logger("jobs")->info("{}: succeeded in {:.3f} s: volume {}", job.name,
+                             outcome.result.stats().wall_seconds(),
+                             DigestString(outcome.result.volume()));
+        break;
+      case v1::BakeJob::CANCELLED:
+        Logger("jobs")->info("{}: cancelled", job.name);
+        break;
+      case v1::BakeJob::QUEUED:
+        Logger("jobs")->info("{}: requeued (checkpoint kept)", job.name);
+        break;
+      default:
+        break;
+    }
+    NotifyLocked(record);
+  }
+  if (final && committedOk) {
+    std::error_code ec;
+    std::filesystem::remove(CheckpointPath(job.name), ec);
+  }
+  // Last: once running_ is empty, Shutdown may tear the manager down.
+  std::lock_guard lock(mutex_);
+  if (outcome.state == v1::BakeJob::QUEUED && !stopping_) queue_.insert(queue_.begin(), job.name);
+  running_.erase(job.name);
+  if (running_.empty()) jobsIdle_.notify_all();
+  wake_.notify_one();
+}
+
+}  // namespace probebake::server

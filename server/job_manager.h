@@ -1,0 +1,158 @@
+// Bake jobs as long-running operations (SPEC 8): admission (validation, request ids, the result
+// cache, the queue bound), scheduling on the oneTBB worker pool, cancellation, progress fan-out to
+// watchers, checkpoints and recovery after a restart. Knows nothing of gRPC: errors are
+// absl::Status (the service maps them to gRPC codes), watchers implement JobSubscriber.
+//
+// Durability: a job is committed to the JobStore before CreateJob returns; every state change is
+// committed before it is announced. On Start, jobs found RUNNING (the server died) are queued
+// again and resume from their last checkpoint; queued jobs stay queued in their order.
+//
+// Scheduling: a dispatcher thread starts queued jobs in creation order, at most
+// maxConcurrentJobs at a time, each as a task of one tbb::task_group in a tbb::task_arena; the
+// task runs the backend's Bake with threadsPerJob worker threads. A job is started by the
+// dispatcher only, once, so it never runs twice at the same time.
+#pragma once
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <tbb/global_control.h>
+#include <tbb/task_arena.h>
+#include <tbb/task_group.h>
+
+#include "absl/status/statusor.h"
+#include "probebake/job/limits.h"
+#include "probebake/v1/service.pb.h"
+#include "server/bake_backend.h"
+
+namespace probebake::server {
+
+class BlobStore;
+class JobStore;
+
+// The payload URL under which a RESOURCE_EXHAUSTED status carries its retry delay (decimal
+// milliseconds); the service sends it as trailing metadata "retry-after-ms".
+inline constexpr const char* kRetryAfterPayload = "probebake.dev/retry-after-ms";
+
+struct JobManagerConfig {
+  std::filesystem::path dataDir;  // checkpoints go to dataDir/checkpoints
+  JobLimits limits;
+  int maxConcurrentJobs = 1;  // >= 1
+  int maxQueuedJobs = 64;     // >= 1: queued (not running) jobs before RESOURCE_EXHAUSTED
+  int threadsPerJob = 0;      // BakeOptions.threads (0: every hardware thread)
+  double progressIntervalSeconds = 0.25;  // BakeOptions.progressIntervalSeconds
+  double checkpointIntervalSeconds = 10;  // BakeOptions.checkpointIntervalSeconds
+  int defaultPageSize = 50;
+  int maxPageSize = 1000;
+};
+
+// A WatchBakeJob stream. Called with the manager's lock held, from any thread: implementations
+// must not block and must not call back into the manager (not even from gRPC reactions that run
+// inline in a call made here).
+class JobSubscriber {
+ public:
+  virtual ~JobSubscriber() = default;
+  // A new state of the job (BASIC view). After a final state no more calls come.
+  virtual void OnJobUpdate(const v1::BakeJob& job) = 0;
+  // The stream must end with `status` (NOT_FOUND: deleted; UNAVAILABLE: shutting down).
+  virtual void OnJobGone(const absl::Status& status) = 0;
+  // True once the stream ended on its own (client gone): the manager then forgets it.
+  virtual bool Detached() const = 0;
+};
+
+bool IsFinal(v1::BakeJob::State state);
+
+class JobManager {
+ public:
+  JobManager(JobManagerConfig config, BlobStore* blobs, JobStore* store, BakeBackend backend);
+  ~JobManager();  // Shutdown() if still running
+  JobManager(const JobManager&) = delete;
+  JobManager& operator=(const JobManager&) = delete;
+
+  // Recovers the queue from the store and starts the dispatcher.
+  absl::Status Start();
+  // Drains: new jobs are refused (UNAVAILABLE), running jobs are cancelled and queued again (their
+  // checkpoints kept), watchers end with UNAVAILABLE. Returns once no job task runs. Idempotent.
+  void Shutdown();
+  bool draining() const { return draining_.load(); }
+
+  absl::StatusOr<v1::BakeJob> CreateJob(const v1::CreateBakeJobRequest& request);
+  absl::StatusOr<v1::BakeJob> GetJob(const std::string& name, v1::BakeJobView view);
+  absl::StatusOr<v1::ListBakeJobsResponse> ListJobs(const v1::ListBakeJobsRequest& request);
+  absl::StatusOr<v1::BakeJob> CancelJob(const std::string& name);
+  absl::Status DeleteJob(const std::string& name);
+
+  // Hands `subscriber` the job as it is now (OnJobUpdate, called before this returns) and, when
+  // that state is not final, registers it for every later state. Subscribers whose stream ended
+  // (JobSubscriber::Detached) are dropped at the next update.
+  absl::Status Subscribe(const std::string& name, std::shared_ptr<JobSubscriber> subscriber);
+
+  const JobManagerConfig& config() const { return config_; }
+
+ private:
+  enum class CancelReason : int { kNone = 0, kUser = 1, kShutdown = 2 };
+  struct RunningJob {
+    std::string name;
+    v1::BakeJob record;  // guarded by mutex_
+    std::atomic<bool> cancel{false};
+    std::atomic<int> reason{int(CancelReason::kNone)};
+    int64_t probesResumed = 0;
+  };
+
+  void DispatchLoop();
+  // How a run ended: the state to commit (QUEUED when requeued at shutdown) and its payload.
+  struct Outcome {
+    v1::BakeJob::State state = v1::BakeJob::FAILED;
+    v1::BakeJobError error;
+    v1::BakeJobResult result;
+  };
+  void RunJob(const std::shared_ptr<RunningJob>& job);
+  Outcome Execute(RunningJob& job);
+  void OnProgress(RunningJob& job, const BakeProgress& progress);
+  void OnCheckpoint(RunningJob& job, const std::string& jobDigest, const ProbeVolume& volume,
+                    const std::vector<uint8_t>& done);
+  // Commits the record of a job leaving RUNNING (and its cache entry) and announces it.
+  void Finish(RunningJob& job, const Outcome& outcome);
+
+  absl::Status ValidateForServer(const v1::JobSpec& spec) const;
+  absl::StatusOr<std::string> CheckName(const std::string& name) const;
+  // DB record overlaid with live progress; mutex_ held.
+  absl::StatusOr<std::optional<v1::BakeJob>> LoadLocked(const std::string& name, bool full);
+  void NotifyLocked(const v1::BakeJob& record);
+  void EndSubscribersLocked(const std::string& name, const absl::Status& status);
+  int64_t RetryDelayMsLocked() const;
+  std::filesystem::path CheckpointPath(const std::string& name) const;
+
+  JobManagerConfig config_;
+  BlobStore* blobs_;
+  JobStore* store_;
+  BakeBackend backend_;
+
+  std::mutex mutex_;
+  std::condition_variable wake_;      // dispatcher: queue or slots changed, or stopping
+  std::condition_variable jobsIdle_;  // running_ became empty
+  std::vector<std::string> queue_;    // names of QUEUED jobs, creation order
+  std::map<std::string, std::shared_ptr<RunningJob>> running_;
+  std::multimap<std::string, std::shared_ptr<JobSubscriber>> subscribers_;
+  bool started_ = false;
+  bool stopping_ = false;
+  std::atomic<bool> draining_{false};
+
+  std::unique_ptr<tbb::global_control> parallelism_;
+  // maxConcurrentJobs worker slots plus one slot reserved for the dispatcher, so spawning a job
+  // never waits for a running one.
+  tbb::task_arena arena_;
+  tbb::task_group tasks_;
+  std::thread dispatcher_;
+};
+
+}  // namespace probebake::server

@@ -1,0 +1,292 @@
+#include "server/job_store.h"
+
+#include <sqlite3.h>
+
+#include "absl/strings/str_cat.h"
+#include "probebake/base/log.h"
+#include "probebake/base/status.h"
+
+namespace probebake::server {
+
+namespace {
+
+constexpr int kSchemaVersion = 1;
+
+constexpr const char* kSchema = R"sql(
+CREATE TABLE IF NOT EXISTS jobs (
+  seq INTEGER PRIMARY KEY AUTOINCREMENT,
+  name TEXT NOT NULL UNIQUE,
+  request_id TEXT UNIQUE,
+  state INTEGER NOT NULL,
+  record BLOB NOT NULL,
+  spec BLOB NOT NULL
+);
+CREATE INDEX IF NOT EXISTS jobs_by_state ON jobs(state, seq);
+CREATE TABLE IF NOT EXISTS result_cache (
+  job_digest TEXT PRIMARY KEY,
+  result BLOB NOT NULL
+);
+)sql";
+
+}  // namespace
+
+// A prepared statement; reset and finalized by its destructor.
+class JobStore::Statement {
+ public:
+  Statement(sqlite3* db, const char* sql) : db_(db) {
+    rc_ = sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr);
+  }
+  ~Statement() { sqlite3_finalize(stmt_); }
+  absl::Status status() const {
+    if (rc_ == SQLITE_OK) return absl::OkStatus();
+    return absl::InternalError(absl::StrCat("sqlite prepare: ", sqlite3_errmsg(db_)));
+  }
+  void Bind(int i, int64_t v) { sqlite3_bind_int64(stmt_, i, v); }
+  void Bind(int i, const std::string& v) {
+    sqlite3_bind_blob(stmt_, i, v.data(), int(v.size()), SQLITE_TRANSIENT);
+  }
+  void BindText(int i, const std::string& v) {
+    sqlite3_bind_text(stmt_, i, v.data(), int(v.size()), SQLITE_TRANSIENT);
+  }
+  void BindNull(int i) { sqlite3_bind_null(stmt_, i); }
+  // SQLITE_ROW: true; SQLITE_DONE: false; else an error.
+  absl::StatusOr<bool> Step() {
+    int rc = sqlite3_step(stmt_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    if (rc == SQLITE_CONSTRAINT)
+      return absl::AlreadyExistsError(absl::StrCat("sqlite: ", sqlite3_errmsg(db_)));
+    return absl::InternalError(absl::StrCat("sqlite step: ", sqlite3_errmsg(db_)));
+  }
+  int64_t Int(int col) const { return sqlite3_column_int64(stmt_, col); }
+  std::string Blob(int col) const {
+    const void* data = sqlite3_column_blob(stmt_, col);
+    int size = sqlite3_column_bytes(stmt_, col);
+    return data ? std::string(static_cast<const char*>(data), size_t(size)) : std::string();
+  }
+
+ private:
+  sqlite3* db_;
+  sqlite3_stmt* stmt_ = nullptr;
+  int rc_;
+};
+
+namespace {
+
+absl::StatusOr<StoredJob> RowToJob(int64_t seq, const std::string& record) {
+  StoredJob job;
+  job.seq = seq;
+  if (!job.record.ParseFromString(record))
+    return absl::DataLossError(absl::StrCat("job row ", seq, ": unreadable record"));
+  return job;
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<JobStore>> JobStore::Open(const std::filesystem::path& dbPath) {
+  sqlite3* db = nullptr;
+  int rc =
+      sqlite3_open_v2(dbPath.c_str(), &db,
+                      SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_FULLMUTEX, nullptr);
+  if (rc != SQLITE_OK) {
+    std::string message = db ? sqlite3_errmsg(db) : "out of memory";
+    sqlite3_close(db);
+    return absl::InternalError(absl::StrCat("open ", dbPath.string(), ": ", message));
+  }
+  std::unique_ptr<JobStore> store(new JobStore(db));
+  sqlite3_busy_timeout(db, 5000);
+  // WAL: readers do not block the writer; synchronous=FULL: a commit is on disk when it returns
+  // (NORMAL could lose the last commits on power loss, and an accepted job must survive).
+  PB_RETURN_IF_ERROR(store->Exec("PRAGMA journal_mode=WAL"));
+  PB_RETURN_IF_ERROR(store->Exec("PRAGMA synchronous=FULL"));
+  PB_RETURN_IF_ERROR(store->Exec(kSchema));
+  {
+    Statement version(db, "PRAGMA user_version");
+    PB_RETURN_IF_ERROR(version.status());
+    PB_ASSIGN_OR_RETURN(bool row, version.Step());
+    int64_t v = row ? version.Int(0) : 0;
+    if (v != 0 && v != kSchemaVersion)
+      return absl::FailedPreconditionError(absl::StrCat(dbPath.string(),
+                                                        ": job store schema version ", v,
+                                                        ", this server knows ", kSchemaVersion));
+  }
+  PB_RETURN_IF_ERROR(store->Exec(absl::StrCat("PRAGMA user_version=", kSchemaVersion).c_str()));
+  return store;
+}
+
+JobStore::~JobStore() {
+  // Closing the last connection checkpoints the WAL into the database file.
+  sqlite3_close(db_);
+}
+
+absl::Status JobStore::Exec(const char* sql) {
+  std::lock_guard lock(mutex_);
+  char* error = nullptr;
+  if (sqlite3_exec(db_, sql, nullptr, nullptr, &error) != SQLITE_OK) {
+    std::string message = error ? error : "unknown error";
+    sqlite3_free(error);
+    return absl::InternalError(absl::StrCat("sqlite: ", message, " in ", sql));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status JobStore::Transaction(const std::function<absl::Status()>& body) {
+  std::lock_guard lock(mutex_);
+  PB_RETURN_IF_ERROR(Exec("BEGIN IMMEDIATE"));
+  absl::Status status = body();
+  if (status.ok()) {
+    status = Exec("COMMIT");
+    if (status.ok()) return status;
+  }
+  absl::Status rollback = Exec("ROLLBACK");
+  if (!rollback.ok()) Logger("jobs")->error("rollback failed: {}", std::string(rollback.message()));
+  return status;
+}
+
+absl::Status JobStore::Insert(const v1::BakeJob& record, const v1::JobSpec& spec) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "INSERT INTO jobs(name, request_id, state, record, spec) VALUES(?,?,?,?,?)");
+  PB_RETURN_IF_ERROR(s.status());
+  s.BindText(1, record.name());
+  if (record.request_id().empty())
+    s.BindNull(2);
+  else
+    s.BindText(2, record.request_id());
+  s.Bind(3, int64_t(record.state()));
+  v1::BakeJob stripped = record;
+  stripped.clear_job();
+  s.Bind(4, stripped.SerializeAsString());
+  s.Bind(5, spec.SerializeAsString());
+  return s.Step().status();
+}
+
+absl::Status JobStore::Update(const v1::BakeJob& record) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "UPDATE jobs SET state = ?, record = ? WHERE name = ?");
+  PB_RETURN_IF_ERROR(s.status());
+  s.Bind(1, int64_t(record.state()));
+  v1::BakeJob stripped = record;
+  stripped.clear_job();
+  s.Bind(2, stripped.SerializeAsString());
+  s.BindText(3, record.name());
+  PB_RETURN_IF_ERROR(s.Step().status());
+  if (sqlite3_changes(db_) == 0)
+    return absl::NotFoundError(absl::StrCat(record.name(), ": no such job"));
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::optional<StoredJob>> JobStore::Get(const std::string& name) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT seq, record FROM jobs WHERE name = ?");
+  PB_RETURN_IF_ERROR(s.status());
+  s.BindText(1, name);
+  PB_ASSIGN_OR_RETURN(bool row, s.Step());
+  if (!row) return std::optional<StoredJob>();
+  PB_ASSIGN_OR_RETURN(StoredJob job, RowToJob(s.Int(0), s.Blob(1)));
+  return std::optional<StoredJob>(std::move(job));
+}
+
+absl::StatusOr<std::optional<v1::JobSpec>> JobStore::GetSpec(const std::string& name) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT spec FROM jobs WHERE name = ?");
+  PB_RETURN_IF_ERROR(s.status());
+  s.BindText(1, name);
+  PB_ASSIGN_OR_RETURN(bool row, s.Step());
+  if (!row) return std::optional<v1::JobSpec>();
+  v1::JobSpec spec;
+  if (!spec.ParseFromString(s.Blob(0)))
+    return absl::DataLossError(absl::StrCat(name, ": unreadable job spec"));
+  return std::optional<v1::JobSpec>(std::move(spec));
+}
+
+absl::StatusOr<std::optional<StoredJob>> JobStore::FindByRequestId(const std::string& requestId) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT seq, record FROM jobs WHERE request_id = ?");
+  PB_RETURN_IF_ERROR(s.status());
+  s.BindText(1, requestId);
+  PB_ASSIGN_OR_RETURN(bool row, s.Step());
+  if (!row) return std::optional<StoredJob>();
+  PB_ASSIGN_OR_RETURN(StoredJob job, RowToJob(s.Int(0), s.Blob(1)));
+  return std::optional<StoredJob>(std::move(job));
+}
+
+absl::StatusOr<std::vector<StoredJob>> JobStore::List(int64_t afterSeq, int limit) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT seq, record FROM jobs WHERE seq > ? ORDER BY seq LIMIT ?");
+  PB_RETURN_IF_ERROR(s.status());
+  s.Bind(1, afterSeq);
+  s.Bind(2, int64_t(limit));
+  std::vector<StoredJob> jobs;
+  while (true) {
+    PB_ASSIGN_OR_RETURN(bool row, s.Step());
+    if (!row) break;
+    PB_ASSIGN_OR_RETURN(StoredJob job, RowToJob(s.Int(0), s.Blob(1)));
+    jobs.push_back(std::move(job));
+  }
+  return jobs;
+}
+
+absl::StatusOr<std::vector<StoredJob>> JobStore::ListInState(v1::BakeJob::State state) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT seq, record FROM jobs WHERE state = ? ORDER BY seq");
+  PB_RETURN_IF_ERROR(s.status());
+  s.Bind(1, int64_t(state));
+  std::vector<StoredJob> jobs;
+  while (true) {
+    PB_ASSIGN_OR_RETURN(bool row, s.Step());
+    if (!row) break;
+    PB_ASSIGN_OR_RETURN(StoredJob job, RowToJob(s.Int(0), s.Blob(1)));
+    jobs.push_back(std::move(job));
+  }
+  return jobs;
+}
+
+absl::StatusOr<int64_t> JobStore::CountInState(v1::BakeJob::State state) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT COUNT(*) FROM jobs WHERE state = ?");
+  PB_RETURN_IF_ERROR(s.status());
+  s.Bind(1, int64_t(state));
+  PB_ASSIGN_OR_RETURN(bool row, s.Step());
+  return row ? s.Int(0) : 0;
+}
+
+absl::StatusOr<bool> JobStore::Delete(const std::string& name) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "DELETE FROM jobs WHERE name = ?");
+  PB_RETURN_IF_ERROR(s.status());
+  s.BindText(1, name);
+  PB_RETURN_IF_ERROR(s.Step().status());
+  return sqlite3_changes(db_) > 0;
+}
+
+absl::StatusOr<std::optional<v1::BakeJobResult>> JobStore::GetCached(const std::string& jobDigest) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT result FROM result_cache WHERE job_digest = ?");
+  PB_RETURN_IF_ERROR(s.status());
+  s.BindText(1, jobDigest);
+  PB_ASSIGN_OR_RETURN(bool row, s.Step());
+  if (!row) return std::optional<v1::BakeJobResult>();
+  v1::BakeJobResult result;
+  if (!result.ParseFromString(s.Blob(0)))
+    return absl::DataLossError(absl::StrCat("result cache ", jobDigest, ": unreadable entry"));
+  return std::optional<v1::BakeJobResult>(std::move(result));
+}
+
+absl::Status JobStore::PutCached(const std::string& jobDigest, const v1::BakeJobResult& result) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "INSERT OR REPLACE INTO result_cache(job_digest, result) VALUES(?, ?)");
+  PB_RETURN_IF_ERROR(s.status());
+  s.BindText(1, jobDigest);
+  s.Bind(2, result.SerializeAsString());
+  return s.Step().status();
+}
+
+absl::Status JobStore::DeleteCached(const std::string& jobDigest) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "DELETE FROM result_cache WHERE job_digest = ?");
+  PB_RETURN_IF_ERROR(s.status());
+  s.BindText(1, jobDigest);
+  return s.Step().status();
+}
+
+}  // namespace probebake::server

@@ -1,0 +1,131 @@
+// probebake-server: the gRPC bake service (SPEC 8).
+//
+//   probebake-server --listen ADDR --data-dir DIR [--threads N] [--max-concurrent-jobs N]
+//                    [--max-queued-jobs N] [--token-file F] [--tls-cert F --tls-key F]
+//                    [--max-probes N ...] [--config FILE] [--port-file F] [--log-level L]
+//
+// Exit codes: 0 after a graceful shutdown (SIGTERM or SIGINT), 2 for bad flags, 1 when the
+// server cannot start (data folder in use, port taken, unreadable token or certificate).
+#include <signal.h>
+
+#include <cstdio>
+
+#include <CLI/CLI.hpp>
+
+#include "probebake/base/log.h"
+#include "server/file_util.h"
+#include "server/server.h"
+
+namespace {
+
+constexpr int kExitStartFailure = 1;
+constexpr int kExitUsage = 2;
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using probebake::Logger;
+  namespace srv = probebake::server;
+
+  srv::ServerOptions options;
+  std::string dataDir, tokenFile, tlsCert, tlsKey, portFile, logLevel = "info";
+  CLI::App app{"probebake-server: bakes light probes for gRPC clients (probebake.v1)"};
+  app.set_config("--config", "", "TOML or INI file with any of these options (flags win)");
+  app.add_option("--listen", options.listen, "host:port to listen on (port 0: any free port)")
+      ->capture_default_str();
+  app.add_option("--data-dir", dataDir, "Folder of the job store, blob store and checkpoints")
+      ->required();
+  app.add_option("--threads", options.threadsPerJob,
+                 "Worker threads per running bake (0: every hardware thread)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--max-concurrent-jobs", options.maxConcurrentJobs, "Jobs baked at once")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--max-queued-jobs", options.maxQueuedJobs,
+                 "Queued jobs before CreateBakeJob answers RESOURCE_EXHAUSTED")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--token-file", tokenFile,
+                 "File holding the bearer token every call must carry (default: no auth)");
+  auto* cert = app.add_option("--tls-cert", tlsCert, "PEM certificate chain (enables TLS)");
+  auto* key = app.add_option("--tls-key", tlsKey, "PEM private key of --tls-cert");
+  cert->needs(key);
+  key->needs(cert);
+  app.add_option("--port-file", portFile,
+                 "Write the port listened on to this file once serving (for --listen host:0)");
+  app.add_option("--log-level", logLevel, "trace, debug, info, warn, error or off")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}))
+      ->capture_default_str();
+  // Limits (SPEC 6), reported by GetCapabilities; 0 means no limit.
+  app.add_option("--max-probes", options.limits.maxProbes, "Probes per job")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--max-triangles", options.limits.maxTriangles, "Triangles per job")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--max-samples-per-probe", options.limits.maxSamplesPerProbe,
+                 "settings.samplesPerProbe")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--max-sh-order", options.limits.maxShOrder, "settings.shOrder")
+      ->check(CLI::Range(0, 8))
+      ->capture_default_str();
+  app.add_option("--max-depth", options.limits.maxDepth, "settings.maxDepth")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--max-lights", options.limits.maxLights, "Lights per scene")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--max-asset-bytes", options.limits.maxAssetBytes, "Bytes per mesh or map")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--max-environment-pixels", options.limits.maxEnvironmentPixels,
+                 "Environment map pixels")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--max-blob-bytes", options.maxBlobBytes, "Bytes per uploaded blob")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--checkpoint-interval", options.checkpointIntervalSeconds,
+                 "Seconds between checkpoints of a running bake")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    int code = app.exit(e);
+    return code == 0 ? 0 : kExitUsage;
+  }
+  probebake::SetLogLevel(spdlog::level::from_str(logLevel));
+  options.dataDir = dataDir;
+  options.tokenFile = tokenFile;
+  options.tlsCert = tlsCert;
+  options.tlsKey = tlsKey;
+
+  // Every thread (gRPC's, oneTBB's, the dispatcher) inherits this mask, so SIGTERM and SIGINT
+  // reach only the sigwait below.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+
+  auto server = srv::ProbebakeServer::Start(options, srv::ProductionBackend);
+  if (!server.ok()) {
+    Logger("server")->error("cannot start: {}", std::string(server.status().message()));
+    return absl::IsInvalidArgument(server.status()) ? kExitUsage : kExitStartFailure;
+  }
+  if (!portFile.empty()) {
+    absl::Status written = srv::WriteFileAtomic(portFile, std::to_string((*server)->port()) + "\n");
+    if (!written.ok()) {
+      Logger("server")->error("--port-file: {}", std::string(written.message()));
+      return kExitStartFailure;
+    }
+  }
+  int signal = 0;
+  sigwait(&signals, &signal);
+  Logger("server")->info("{} received: shutting down", signal == SIGTERM ? "SIGTERM" : "SIGINT");
+  (*server)->Shutdown();
+  return 0;
+}

@@ -1,0 +1,161 @@
+#include "server/server.h"
+
+#include <fcntl.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <chrono>
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/security/server_credentials.h>
+
+#include "absl/strings/str_cat.h"
+#include "probebake/base/log.h"
+#include "probebake/base/status.h"
+#include "server/auth.h"
+#include "server/blob_store.h"
+#include "server/file_util.h"
+#include "server/job_manager.h"
+#include "server/job_store.h"
+#include "server/services.h"
+
+namespace probebake::server {
+
+namespace {
+
+// One server per data folder: a second one would run the same queued jobs.
+absl::StatusOr<int> LockDataDir(const std::filesystem::path& dataDir) {
+  std::filesystem::path lockPath = dataDir / "LOCK";
+  int fd = ::open(lockPath.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) return ErrnoError("open", lockPath, errno);
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    ::close(fd);
+    return absl::FailedPreconditionError(
+        absl::StrCat(dataDir.string(), " is in use by another probebake-server"));
+  }
+  return fd;
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
+    const ServerOptions& options, const BackendFactory& backend) {
+  if (options.dataDir.empty()) return absl::InvalidArgumentError("--data-dir is required");
+  if (options.tlsCert.empty() != options.tlsKey.empty())
+    return absl::InvalidArgumentError("--tls-cert and --tls-key go together");
+  std::error_code ec;
+  std::filesystem::create_directories(options.dataDir, ec);
+  if (ec)
+    return absl::InvalidArgumentError(
+        absl::StrCat("--data-dir ", options.dataDir.string(), ": ", ec.message()));
+
+  std::unique_ptr<ProbebakeServer> s(new ProbebakeServer);
+  PB_ASSIGN_OR_RETURN(s->lockFd_, LockDataDir(options.dataDir));
+
+  std::optional<std::string> token;
+  if (!options.tokenFile.empty()) {
+    PB_ASSIGN_OR_RETURN(token, TokenAuth::ReadTokenFile(options.tokenFile));
+  }
+  s->auth_ = std::make_shared<TokenAuth>(std::move(token));
+
+  std::shared_ptr<grpc::ServerCredentials> credentials = grpc::InsecureServerCredentials();
+  if (!options.tlsCert.empty()) {
+    grpc::SslServerCredentialsOptions ssl;
+    grpc::SslServerCredentialsOptions::PemKeyCertPair pair;
+    absl::StatusOr<std::string> key = ReadWholeFile(options.tlsKey);
+    absl::StatusOr<std::string> cert = ReadWholeFile(options.tlsCert);
+    if (!key.ok())
+      return absl::InvalidArgumentError(
+          absl::StrCat("--tls-key: ", std::string(key.status().message())));
+    if (!cert.ok())
+      return absl::InvalidArgumentError(
+          absl::StrCat("--tls-cert: ", std::string(cert.status().message())));
+    pair.private_key = std::move(*key);
+    pair.cert_chain = std::move(*cert);
+    ssl.pem_key_cert_pairs.push_back(std::move(pair));
+    credentials = grpc::SslServerCredentials(ssl);
+  }
+
+  PB_ASSIGN_OR_RETURN(s->blobs_, BlobStore::Open(options.dataDir, options.maxBlobBytes));
+  PB_ASSIGN_OR_RETURN(s->store_, JobStore::Open(options.dataDir / "jobs.sqlite"));
+
+  JobManagerConfig config;
+  config.dataDir = options.dataDir;
+  config.limits = options.limits;
+  config.maxConcurrentJobs = options.maxConcurrentJobs;
+  config.maxQueuedJobs = options.maxQueuedJobs;
+  config.threadsPerJob = options.threadsPerJob;
+  config.progressIntervalSeconds = options.progressIntervalSeconds;
+  config.checkpointIntervalSeconds = options.checkpointIntervalSeconds;
+  s->jobs_ = std::make_unique<JobManager>(config, s->blobs_.get(), s->store_.get(),
+                                          backend(s->blobs_.get(), options.limits));
+
+  ServiceLimits limits;
+  limits.chunkBytes = options.chunkBytes;
+  limits.maxMessageBytes = options.maxMessageBytes;
+  s->capabilities_ =
+      std::make_unique<CapabilitiesService>(s->auth_, s->jobs_.get(), s->blobs_.get(), limits);
+  s->content_ = std::make_unique<ContentStorageService>(s->auth_, s->blobs_.get(), limits);
+  s->bakeJobs_ = std::make_unique<BakeJobsService>(s->auth_, s->jobs_.get());
+
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  builder.AddListeningPort(options.listen, credentials, &s->port_);
+  builder.SetMaxReceiveMessageSize(options.maxMessageBytes);
+  builder.SetMaxSendMessageSize(options.maxMessageBytes);
+  builder.RegisterService(s->capabilities_.get());
+  builder.RegisterService(s->content_.get());
+  builder.RegisterService(s->bakeJobs_.get());
+  std::vector<std::unique_ptr<grpc::experimental::ServerInterceptorFactoryInterface>> interceptors;
+  interceptors.push_back(std::make_unique<AuthInterceptorFactory>(s->auth_));
+  builder.experimental().SetInterceptorCreators(std::move(interceptors));
+
+  PB_RETURN_IF_ERROR(s->jobs_->Start());
+  s->server_ = builder.BuildAndStart();
+  if (!s->server_ || s->port_ == 0) {
+    s->jobs_->Shutdown();
+    return absl::UnavailableError(absl::StrCat("cannot listen on ", options.listen));
+  }
+  Logger("server")->info("probebake-server listening on {} (port {}), data {}, {}{}",
+                         options.listen, s->port_, options.dataDir.string(),
+                         s->auth_->enabled() ? "token auth" : "no auth",
+                         options.tlsCert.empty() ? "" : ", TLS");
+  return s;
+}
+
+ProbebakeServer::~ProbebakeServer() {
+  Shutdown();
+}
+
+void ProbebakeServer::Shutdown() {
+  if (shutDown_) return;
+  shutDown_ = true;
+  auto start = std::chrono::steady_clock::now();
+  if (server_) {
+    if (auto* health = server_->GetHealthCheckService()) health->SetServingStatus(false);
+  }
+  Logger("server")->info("draining: health NOT_SERVING, new jobs refused");
+  if (jobs_) jobs_->Shutdown();
+  if (server_) {
+    // In-flight calls (uploads, downloads) get a moment to finish, then are cancelled.
+    server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+    server_->Wait();
+  }
+  server_.reset();
+  bakeJobs_.reset();
+  content_.reset();
+  capabilities_.reset();
+  jobs_.reset();
+  store_.reset();  // closing checkpoints the WAL into the database file
+  blobs_.reset();
+  if (lockFd_ >= 0) ::close(lockFd_);
+  lockFd_ = -1;
+  Logger("server")->info(
+      "stopped in {:.3f} s",
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+}
+
+}  // namespace probebake::server
