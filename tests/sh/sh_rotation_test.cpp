@@ -133,12 +133,10 @@ TEST(ShRotation, BlocksAreOrthogonal) {
   for (const Mat3d& r : TestMatrices(true)) {
     const ShRotation rot = MustCreate(kMaxShOrder, r);
     for (int l = 0; l <= kMaxShOrder; ++l) {
-      const auto b = rot.Band(l);
-      const int n = 2 * l + 1;
-      for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
+      for (int i = -l; i <= l; ++i)
+        for (int j = -l; j <= l; ++j) {
           double dot = 0;
-          for (int k = 0; k < n; ++k) dot += b[i * n + k] * b[j * n + k];
+          for (int k = -l; k <= l; ++k) dot += rot.Element(l, i, k) * rot.Element(l, j, k);
           ASSERT_NEAR(dot, i == j ? 1.0 : 0.0, 1e-13) << "l " << l << " R " << r;
         }
     }
@@ -173,12 +171,12 @@ TEST(ShRotation, BandOneIsThePermutedMatrix) {
   std::mt19937_64 rng(5);
   const Mat3d r = test::RandomRotation(rng);
   const ShRotation rot = MustCreate(1, r);
-  const auto b = rot.Band(1);
   const int p[3] = {1, 2, 0};
   const double s[3] = {-1, 1, -1};
   for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) EXPECT_EQ(b[i * 3 + j], s[i] * s[j] * r(p[i], p[j]));
-  EXPECT_EQ(rot.Band(0)[0], 1.0);
+    for (int j = 0; j < 3; ++j)
+      EXPECT_EQ(rot.Element(1, i - 1, j - 1), s[i] * s[j] * r(p[i], p[j]));
+  EXPECT_EQ(rot.Element(0, 0, 0), 1.0);
 }
 
 TEST(ShRotation, RgbMatchesPerChannel) {

@@ -72,20 +72,33 @@ constexpr const RecurrenceTables<T>& Tables() {
   }
 }
 
-// Returns d, or d/|d| when |d|² is further than 64 ulp from 1 (the documented non-unit rule).
+// The documented non-unit rule: d is used as given when |d|² is within 64 ulp of 1, else
+// normalised (out of line: unit callers only pay for |d|² and one compare). Scalars, not a
+// Vec3 copy, so the fast path keeps x, y, z in registers.
 template <typename T>
-Vec3<T> UnitDirection(const Vec3<T>& d) {
-  constexpr T kTolerance = 64 * std::numeric_limits<T>::epsilon();
-  const T r2 = d.x * d.x + d.y * d.y + d.z * d.z;
-  if (std::abs(r2 - T(1)) <= kTolerance) [[likely]]
-    return d;
-  // Also catches NaN (the comparison above is false for it).
+[[gnu::noinline]] Vec3<T> NormalizeSlow(const Vec3<T>& d, T r2) {
+  // Also reached for NaN (every comparison with it is false).
   PB_CHECK(r2 > 0 && std::isfinite(r2));
   return d / std::sqrt(r2);
 }
 
 template <typename T>
-void Recurrence(int order, const Vec3<T>& d, T* out) {
+struct Xyz {
+  T x, y, z;
+};
+
+template <typename T>
+inline Xyz<T> UnitDirection(const Vec3<T>& d) {
+  constexpr T kTolerance = 64 * std::numeric_limits<T>::epsilon();
+  const T r2 = d.x * d.x + d.y * d.y + d.z * d.z;
+  if (std::abs(r2 - T(1)) <= kTolerance) [[likely]]
+    return {d.x, d.y, d.z};
+  const Vec3<T> u = NormalizeSlow(d, r2);
+  return {u.x, u.y, u.z};
+}
+
+template <typename T>
+inline void Recurrence(int order, const Xyz<T>& d, T* out) {
   const RecurrenceTables<T>& t = Tables<T>();
   const T x = d.x, y = d.y, z = d.z;
   // c[m] + i s[m] = (x + iy)^m = sin^m θ (cos mφ + i sin mφ).
@@ -132,7 +145,7 @@ void Recurrence(int order, const Vec3<T>& d, T* out) {
 // Hand-expanded polynomials for orders 0..3 (valid on the unit sphere: z² - 1/3 and friends are
 // written with x² + y² + z² = 1 folded in). Constants are the normalisations K, to 20 digits.
 template <typename T>
-void ClosedForm(int order, const Vec3<T>& d, T* out) {
+inline void ClosedForm(int order, const Xyz<T>& d, T* out) {
   const T x = d.x, y = d.y, z = d.z;
   out[0] = T(0.28209479177387814347);
   if (order == 0) return;
@@ -172,7 +185,7 @@ void ClosedForm(int order, const Vec3<T>& d, T* out) {
 template <typename T>
 void EvalShBasis(int order, const Vec3<T>& d, T* out) {
   PB_CHECK(order >= 0 && order <= kMaxShOrder);
-  const Vec3<T> u = UnitDirection(d);
+  const Xyz<T> u = UnitDirection(d);
   if (order <= 3) {
     ClosedForm(order, u, out);
   } else {

@@ -20,94 +20,150 @@ constexpr int BandOffset(int l) {
 }
 constexpr int kBlockStorage = BandOffset(kMaxShOrder + 1);
 
-// The R-independent coefficients u, v, w of Ivanic–Ruedenberg (1998 erratum, table 2), stored
-// per (l, m, n) at BandOffset(l) + (m + l)(2l + 1) + (n + l).
-struct UvwTables {
-  double u[kBlockStorage] = {};
-  double v[kBlockStorage] = {};
-  double w[kBlockStorage] = {};
+// Ivanic–Ruedenberg (1998 erratum, table 2) writes the band-l block as
+//   B_l[m][n] = u U + v V + w W,
+// where U, V, W are sums of P_i(a, n) terms (i in {-1, 0, 1}, a a row of band l-1) and u, v, w
+// depend on n only through 1/sqrt(denom(n)), denom = (l+n)(l-n) for |n| < l and 2l(2l-1) at
+// |n| = l. So each row m is a short list of terms c · P_i(a, ·), scaled per column by
+// 1/sqrt(denom(n)); the terms and scales are R-independent and tabulated here.
+//   P_i(a, n) = B1[i][0] B_{l-1}[a][n]                                    (|n| < l)
+//   P_i(a, l) = B1[i][1] B_{l-1}[a][l-1] - B1[i][-1] B_{l-1}[a][1-l]
+//   P_i(a,-l) = B1[i][1] B_{l-1}[a][1-l] + B1[i][-1] B_{l-1}[a][l-1]
+struct RowTerm {
+  int i = 0;     // band-1 row, -1..1
+  int a = 0;     // band-(l-1) row
+  double c = 0;  // u, v or w without the 1/sqrt(denom), with V's and W's signs and sqrt(2)
 };
 
-constexpr UvwTables MakeUvw() {
-  UvwTables t;
+struct RowRecipe {
+  int count = 0;
+  RowTerm terms[5];
+};
+
+struct RecurrenceTables {
+  // recipe[l][m + l]; inv_denom[l][n + l] = 1/sqrt(denom(n)).
+  RowRecipe recipe[kMaxShOrder + 1][2 * kMaxShOrder + 1];
+  double inv_denom[kMaxShOrder + 1][2 * kMaxShOrder + 1] = {};
+};
+
+constexpr RecurrenceTables MakeRecurrenceTables() {
+  RecurrenceTables t;
+  constexpr double kSqrt2 = 1.41421356237309504880;
   for (int l = 2; l <= kMaxShOrder; ++l) {
-    const int size = 2 * l + 1;
+    for (int n = -l; n <= l; ++n) {
+      const double denom =
+          (n == l || n == -l) ? (2.0 * l) * (2.0 * l - 1) : double(l + n) * (l - n);
+      t.inv_denom[l][n + l] = 1 / ConstexprSqrt(denom);
+    }
     for (int m = -l; m <= l; ++m) {
-      for (int n = -l; n <= l; ++n) {
-        const int k = BandOffset(l) + (m + l) * size + (n + l);
-        const double d = m == 0 ? 1 : 0;
-        const int am = m < 0 ? -m : m;
-        const double denom =
-            (n == l || n == -l) ? (2.0 * l) * (2.0 * l - 1) : double(l + n) * (l - n);
-        t.u[k] = ConstexprSqrt(double(l + m) * (l - m) / denom);
-        t.v[k] = 0.5 * ConstexprSqrt((1 + d) * (l + am - 1) * (l + am) / denom) * (1 - 2 * d);
-        t.w[k] = -0.5 * ConstexprSqrt(double(l - am - 1) * (l - am) / denom) * (1 - d);
+      RowRecipe& r = t.recipe[l][m + l];
+      auto add = [&r](int i, int a, double c) { r.terms[r.count++] = RowTerm{i, a, c}; };
+      const double d = m == 0 ? 1 : 0;
+      const int am = m < 0 ? -m : m;
+      const double u = ConstexprSqrt(double(l + m) * (l - m));
+      const double v = 0.5 * ConstexprSqrt((1 + d) * (l + am - 1) * (l + am)) * (1 - 2 * d);
+      const double w = -0.5 * ConstexprSqrt(double(l - am - 1) * (l - am)) * (1 - d);
+      if (u != 0) add(0, m, u);
+      if (v != 0) {
+        if (m == 0) {
+          add(1, 1, v);
+          add(-1, -1, v);
+        } else if (m == 1) {
+          add(1, 0, v * kSqrt2);
+        } else if (m == -1) {
+          add(-1, 0, v * kSqrt2);
+        } else if (m > 1) {
+          add(1, m - 1, v);
+          add(-1, -m + 1, -v);
+        } else {
+          add(1, m + 1, v);
+          add(-1, -m - 1, v);
+        }
+      }
+      if (w != 0) {
+        if (m > 0) {
+          add(1, m + 1, w);
+          add(-1, -m - 1, w);
+        } else {
+          add(1, m - 1, w);
+          add(-1, -m + 1, -w);
+        }
       }
     }
   }
   return t;
 }
 
-constexpr UvwTables kUvw = MakeUvw();
+constexpr RecurrenceTables kRecurrence = MakeRecurrenceTables();
 
-constexpr double kSqrt2 = 1.41421356237309504880;
-
-// Band-l block from the band-1 block r1 and the band-(l-1) block prev (Ivanic–Ruedenberg).
-class BandRecurrence {
- public:
-  BandRecurrence(int l, const double* r1, const double* prev) : l_(l), r1_(r1), prev_(prev) {}
-
-  void Build(double* out) const {
-    const int size = 2 * l_ + 1;
-    for (int m = -l_; m <= l_; ++m) {
-      for (int n = -l_; n <= l_; ++n) {
-        const int k = BandOffset(l_) + (m + l_) * size + (n + l_);
-        double value = 0;
-        if (kUvw.u[k] != 0) value += kUvw.u[k] * U(m, n);
-        if (kUvw.v[k] != 0) value += kUvw.v[k] * V(m, n);
-        if (kUvw.w[k] != 0) value += kUvw.w[k] * W(m, n);
-        out[(m + l_) * size + (n + l_)] = value;
-      }
+// Band L, row-major into `cur` ((2L+1)²), from band 1 (b1, row-major 3x3) and band L-1 (`prev`,
+// row-major). Rows are combinations of whole rows of `prev`, so the inner loops are contiguous;
+// L is a template argument so the loops and the tabulated recipes unroll into straight code.
+template <int L>
+void BuildBand(const double* b1, const double* prev, double* cur) {
+  constexpr int kSize = 2 * L + 1, kPrev = 2 * L - 1;
+  const double* inv_denom = kRecurrence.inv_denom[L];
+#pragma GCC unroll 19
+  for (int m = -L; m <= L; ++m) {
+    const RowRecipe& recipe = kRecurrence.recipe[L][m + L];
+    double row[kSize] = {};
+#pragma GCC unroll 5
+    for (int t = 0; t < recipe.count; ++t) {
+      const RowTerm& term = recipe.terms[t];
+      const double* p = prev + (term.a + L - 1) * kPrev;  // row a of band L-1, index b + L - 1
+      const double* r1 = b1 + (term.i + 1) * 3;           // r1[0..2] = B1[i][-1, 0, 1]
+      const double center = term.c * r1[1];
+      for (int n = 1; n < kSize - 1; ++n) row[n] += center * p[n - 1];
+      row[kSize - 1] += term.c * (r1[2] * p[kPrev - 1] - r1[0] * p[0]);
+      row[0] += term.c * (r1[2] * p[0] + r1[0] * p[kPrev - 1]);
     }
+    for (int n = 0; n < kSize; ++n) cur[(m + L) * kSize + n] = row[n] * inv_denom[n];
   }
+}
 
- private:
-  double R1(int i, int j) const { return r1_[(i + 1) * 3 + (j + 1)]; }
-  double Prev(int a, int b) const { return prev_[(a + l_ - 1) * (2 * l_ - 1) + (b + l_ - 1)]; }
+void BuildBand(int l, const double* b1, const double* prev, double* cur) {
+  switch (l) {
+    case 2:
+      return BuildBand<2>(b1, prev, cur);
+    case 3:
+      return BuildBand<3>(b1, prev, cur);
+    case 4:
+      return BuildBand<4>(b1, prev, cur);
+    case 5:
+      return BuildBand<5>(b1, prev, cur);
+    case 6:
+      return BuildBand<6>(b1, prev, cur);
+    case 7:
+      return BuildBand<7>(b1, prev, cur);
+    case 8:
+      return BuildBand<8>(b1, prev, cur);
+    case 9:
+      return BuildBand<9>(b1, prev, cur);
+  }
+  static_assert(kMaxShOrder == 9, "extend BuildBand to the new kMaxShOrder");
+  PB_CHECK(false);
+}
 
-  double P(int i, int a, int b) const {
-    if (b == l_) return R1(i, 1) * Prev(a, l_ - 1) - R1(i, -1) * Prev(a, -l_ + 1);
-    if (b == -l_) return R1(i, 1) * Prev(a, -l_ + 1) + R1(i, -1) * Prev(a, l_ - 1);
-    return R1(i, 0) * Prev(a, b);
-  }
-  double U(int m, int n) const { return P(0, m, n); }
-  double V(int m, int n) const {
-    if (m == 0) return P(1, 1, n) + P(-1, -1, n);
-    if (m == 1) return kSqrt2 * P(1, 0, n);
-    if (m == -1) return kSqrt2 * P(-1, 0, n);
-    if (m > 0) return P(1, m - 1, n) - P(-1, -m + 1, n);
-    return P(1, m + 1, n) + P(-1, -m - 1, n);
-  }
-  double W(int m, int n) const {
-    if (m > 0) return P(1, m + 1, n) + P(-1, -m - 1, n);
-    return P(1, m - 1, n) - P(-1, -m + 1, n);
-  }
+// out_m = Σ_n B[m][n] in_n for one band of compile-time size N, B column-major. Accumulating
+// column by column keeps each out_m's sum in the order n = 0, 1, ... (the same bits as a row
+// dot product) while the loop over m vectorises.
+template <int N>
+void ApplyBlock(const double* block, const double* in, double* out) {
+  double x[N], acc[N];
+  for (int n = 0; n < N; ++n) x[n] = in[n];
+  for (int m = 0; m < N; ++m) acc[m] = block[m] * x[0];
+  for (int n = 1; n < N; ++n)
+    for (int m = 0; m < N; ++m) acc[m] += block[n * N + m] * x[n];
+  for (int m = 0; m < N; ++m) out[m] = acc[m];
+}
 
-  int l_;
-  const double* r1_;
-  const double* prev_;
-};
-
-// out_m = Σ_n block[m][n] in_n for a band of compile-time size N (fully unrolled).
-template <int N, typename V>
-void ApplyBlock(const double* block, const V* in, V* out) {
-  V tmp[N];
-  for (int n = 0; n < N; ++n) tmp[n] = in[n];
-  for (int m = 0; m < N; ++m) {
-    V sum = block[m * N] * tmp[0];
-    for (int n = 1; n < N; ++n) sum += block[m * N + n] * tmp[n];
-    out[m] = sum;
-  }
+// RGB: the three channels as separate contiguous vectors, each through the scalar kernel.
+template <int N>
+void ApplyBlock(const double* block, const Vec3d* in, Vec3d* out) {
+  double c[3][N], o[3][N];
+  for (int n = 0; n < N; ++n) c[0][n] = in[n].x, c[1][n] = in[n].y, c[2][n] = in[n].z;
+  for (int k = 0; k < 3; ++k) ApplyBlock<N>(block, c[k], o[k]);
+  for (int m = 0; m < N; ++m) out[m] = {o[0][m], o[1][m], o[2][m]};
 }
 
 template <typename V>
@@ -157,24 +213,30 @@ absl::StatusOr<ShRotation> ShRotation::Create(int order, const Mat3d& r) {
   const double sign = rot.improper_ ? -1 : 1;
   constexpr int p[3] = {1, 2, 0};
   constexpr double s[3] = {-1, 1, -1};
-  double* r1 = b + BandOffset(1);
+  // Bands are built row-major in two ping-pong scratch buffers (the recurrence reads whole rows
+  // of the previous band) and stored column-major (what Apply wants).
+  double b1[9];
   for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) r1[i * 3 + j] = sign * s[i] * s[j] * r(p[i], p[j]);
-  for (int l = 2; l <= order; ++l) {
-    BandRecurrence(l, r1, b + BandOffset(l - 1)).Build(b + BandOffset(l));
-  }
-  if (rot.improper_) {
-    // The inversion: band l times (-1)^l, applied once every band of -r exists.
-    for (int l = 1; l <= order; l += 2) {
-      for (int k = BandOffset(l); k < BandOffset(l + 1); ++k) b[k] = -b[k];
-    }
+    for (int j = 0; j < 3; ++j) b1[i * 3 + j] = sign * s[i] * s[j] * r(p[i], p[j]);
+  double scratch[2][(2 * kMaxShOrder + 1) * (2 * kMaxShOrder + 1)];
+  std::copy(b1, b1 + 9, scratch[1]);
+  const double flip = rot.improper_ ? -1 : 1;  // the inversion: band l times (-1)^l
+  for (int l = 1; l <= order; ++l) {
+    double* cur = scratch[l % 2];
+    if (l >= 2) BuildBand(l, b1, scratch[(l - 1) % 2], cur);
+    const int size = 2 * l + 1;
+    const double bandSign = (l % 2 == 1) ? flip : 1.0;
+    double* out = b + BandOffset(l);
+    for (int m = 0; m < size; ++m)
+      for (int n = 0; n < size; ++n) out[n * size + m] = bandSign * cur[m * size + n];
   }
   return rot;
 }
 
-std::span<const double> ShRotation::Band(int l) const {
+double ShRotation::Element(int l, int m, int n) const {
   PB_CHECK(l >= 0 && l <= order_);
-  return std::span<const double>(blocks_).subspan(BandOffset(l), (2 * l + 1) * (2 * l + 1));
+  PB_CHECK(m >= -l && m <= l && n >= -l && n <= l);
+  return blocks_[BandOffset(l) + (n + l) * (2 * l + 1) + (m + l)];
 }
 
 void ShRotation::Apply(std::span<const double> in, std::span<double> out) const {
@@ -195,9 +257,9 @@ std::ostream& operator<<(std::ostream& os, const ShRotation& rotation) {
   os << "ShRotation{order " << rotation.order() << ", R " << rotation.matrix()
      << (rotation.improper() ? ", improper" : "") << ", bands [";
   for (int l = 0; l <= rotation.order(); ++l) {
-    const std::span<const double> band = rotation.Band(l);
     os << (l ? "; " : "") << "l" << l << ":";
-    for (size_t k = 0; k < band.size(); ++k) os << " " << band[k];
+    for (int m = -l; m <= l; ++m)
+      for (int n = -l; n <= l; ++n) os << " " << rotation.Element(l, m, n);
   }
   return os << "]}";
 }

@@ -46,8 +46,8 @@ class ShRotation {
   const Mat3d& matrix() const { return r_; }
   bool improper() const { return improper_; }
 
-  // Row-major block of band l (0 <= l <= order): element [(m + l)(2l + 1) + (n + l)] is B_l[m][n].
-  std::span<const double> Band(int l) const;
+  // B_l[m][n], the block entry of band l (0 <= l <= order, |m|, |n| <= l; checked).
+  double Element(int l, int m, int n) const;
 
   // out = R in for the first ShCoeffCount(order()) coefficients (both spans at least that long,
   // checked). in and out may be the same array.
@@ -60,7 +60,8 @@ class ShRotation {
   int order_ = 0;
   Mat3d r_;
   bool improper_ = false;
-  std::vector<double> blocks_;  // band l starts at l(2l-1)(2l+1)/3
+  // Band l, column-major ((n + l)(2l + 1) + (m + l)), starts at l(2l-1)(2l+1)/3.
+  std::vector<double> blocks_;
 };
 
 std::ostream& operator<<(std::ostream& os, const ShRotation& rotation);
