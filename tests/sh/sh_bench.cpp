@@ -8,6 +8,7 @@
 #include "probebake/math/mat3.h"
 #include "probebake/sh/sh_basis.h"
 #include "probebake/sh/sh_convolution.h"
+#include "probebake/sh/sh_projection.h"
 #include "probebake/sh/sh_rotation.h"
 
 namespace probebake {
@@ -120,6 +121,20 @@ void BM_IrradianceAt(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_IrradianceAt)->Arg(2)->Arg(8);
+
+// One radiance sample into an RGB projection: basis evaluation plus the accumulate.
+void BM_AccumulateRgb(benchmark::State& state) {
+  const int order = static_cast<int>(state.range(0));
+  const auto dirs = Directions<double>();
+  ShAccumulatorRgb acc(order);
+  size_t i = 0;
+  for (auto _ : state) {
+    acc.Add(dirs[i & (kInputs - 1)], Vec3d{0.5, 0.25, 1.0 + static_cast<double>(i & 7)});
+    ++i;
+  }
+  benchmark::DoNotOptimize(acc.count());
+}
+BENCHMARK(BM_AccumulateRgb)->Arg(1)->Arg(2)->Arg(4)->Arg(8);
 
 }  // namespace
 }  // namespace probebake

@@ -261,10 +261,9 @@ TEST(Lobes, HenyeyGreensteinMatchesNumericProjection) {
       EXPECT_NEAR(lobe[i], numeric[i], 1e-12) << "g " << g << " index " << i;
       worst = std::max(worst, std::abs(lobe[i] - numeric[i]));
     }
-    std::ostringstream key, value;
+    std::ostringstream key;
     key << "hg_max_error_g" << g;
-    value << std::scientific << worst;
-    RecordProperty(key.str(), value.str());
+    RecordProperty(key.str(), test::Sci(worst));
   }
 }
 

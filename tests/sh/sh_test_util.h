@@ -7,6 +7,8 @@
 #include <functional>
 #include <numbers>
 #include <random>
+#include <sstream>
+#include <string>
 #include <vector>
 
 #include "probebake/math/mat3.h"
@@ -29,6 +31,13 @@ inline double ReferenceSh(int l, int m, const Vec3d& d) {
   const double p = std::sph_legendre(l, am, theta);
   if (m == 0) return p;
   return std::sqrt(2.0) * p * (m > 0 ? std::cos(am * phi) : std::sin(am * phi));
+}
+
+// x in scientific notation, for RecordProperty.
+inline std::string Sci(double x) {
+  std::ostringstream os;
+  os << std::scientific << x;
+  return os.str();
 }
 
 // Deterministic uniform directions (fixed seed: tests are reproducible).
