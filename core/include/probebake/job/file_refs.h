@@ -1,0 +1,42 @@
+// The CLI's view of a job's asset files: list every `file` reference so it can upload the files
+// as blobs, then rewrite each reference into `blob` (SPEC 4a, 8: the server never reads client
+// paths). After the rewrite, the job digest and scene digest are unchanged: both are computed with
+// every file reference replaced by the digest of its content.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "probebake/v1/job.pb.h"
+
+namespace probebake {
+
+struct FileReference {
+  enum class Kind { kMesh, kEnvironmentMap };
+  Kind kind = Kind::kMesh;
+  int meshIndex = -1;        // kMesh: index into scene.meshes
+  std::string fieldPath;     // "scene.meshes[3].file" or "scene.environment.map.file"
+  std::string relativePath;  // the path as written in the job (relative to the job file)
+};
+
+// Every non-empty `file` in `job`, meshes in order, then the environment map.
+std::vector<FileReference> ListFileReferences(const v1::JobSpec& job);
+
+// Replaces the reference `ref` (from ListFileReferences on this job) by `digest`: a mesh gets
+// `blob` and `format` (its explicit format, lowercased, else its file extension), an environment
+// map gets `blob`; `file` is cleared. INVALID_ARGUMENT naming the field when the job no longer
+// holds that reference or a mesh file's format is unknown.
+absl::Status ReplaceFileWithBlob(const FileReference& ref, const v1::Digest& digest,
+                                 v1::JobSpec* job);
+
+// True for the mesh formats the importer reads: "obj", "ply", "gltf", "glb" (lowercase).
+bool IsMeshFormat(std::string_view format);
+
+// The format of a mesh: its `format` lowercased when given, else its file's extension lowercased
+// (no dot); nullopt when neither names a mesh format.
+std::optional<std::string> MeshFormatOf(const v1::Mesh& mesh);
+
+}  // namespace probebake

@@ -1,0 +1,38 @@
+// Limits a job must respect (SPEC 6): configuration, reported by the server in GetCapabilities
+// (the fields mirror probebake.v1.JobLimits one to one). A job past any limit is rejected up front
+// with INVALID_ARGUMENT naming the field, never discovered mid-bake.
+//
+// 0 means "no limit" for every field, as in the proto; the baker's own bounds still apply (SH
+// orders 0 to kMaxShOrder, grid counts that fit an int32).
+#pragma once
+
+#include <cstdint>
+
+namespace probebake {
+
+// The highest SH order the baker supports (SPEC 2).
+inline constexpr int kMaxShOrder = 8;
+
+struct JobLimits {
+  // Probes in the grid (the product of the counts per axis), before placement. A probe costs
+  // 12 (L+1)^2 bytes per SH grid plus bookkeeping: 4M probes at order 8 is ~4 GB of radiance.
+  int64_t maxProbes = int64_t(1) << 22;
+  // Triangles over every mesh of the scene, inline and from files, after triangulation and before
+  // zero-area triangles are dropped. ~170 bytes each in the scene and the BVH: 16M is ~3 GB.
+  int64_t maxTriangles = int64_t(1) << 24;
+  // settings.samplesPerProbe (the sample cap of one probe).
+  int64_t maxSamplesPerProbe = int64_t(1) << 24;
+  // settings.shOrder; never above kMaxShOrder whatever this says.
+  int maxShOrder = kMaxShOrder;
+  // settings.maxDepth (bounces per path).
+  int maxDepth = 1024;
+  // Lights in scene.lights (emissive triangles are not counted).
+  int maxLights = 1 << 16;
+  // Size of any one referenced asset (mesh or environment map file), bytes.
+  int64_t maxAssetBytes = int64_t(1) << 30;
+  // Environment map pixels (width * height of the data window): 12 bytes each as float RGB, plus
+  // the sampling tables the tracer builds; 64M pixels (e.g. 11k x 5.7k) is ~1.5 GB.
+  int64_t maxEnvironmentPixels = int64_t(1) << 26;
+};
+
+}  // namespace probebake

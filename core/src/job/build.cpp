@@ -1,0 +1,334 @@
+// BuildBakeJob: assets, world-space scene, digests.
+#include <google/protobuf/io/coded_stream.h>
+#include <google/protobuf/io/zero_copy_stream_impl_lite.h>
+
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+#include <map>
+#include <utility>
+
+#include "env_map.h"
+#include "errors.h"
+#include "mesh_import.h"
+#include "probebake/base/check.h"
+#include "probebake/base/log.h"
+#include "probebake/base/status.h"
+#include "probebake/base/version.h"
+#include "probebake/job/digest.h"
+#include "probebake/job/file_refs.h"
+#include "probebake/job/job.h"
+#include "probebake/job/job_json.h"
+#include "probebake/job/validate.h"
+#include "text.h"
+
+namespace probebake {
+namespace {
+
+using job_internal::Index;
+using job_internal::Num;
+using job_internal::Quoted;
+
+// Protobuf's deterministic binary form (map entries sorted; the same bytes in every run of the
+// same build), the input of every digest.
+std::string DeterministicBytes(const google::protobuf::Message& message) {
+  std::string bytes;
+  {
+    google::protobuf::io::StringOutputStream stream(&bytes);
+    google::protobuf::io::CodedOutputStream coded(&stream);
+    coded.SetSerializationDeterministic(true);
+    // Fails only for messages over 2 GiB, which the limits and the RPC layer exclude.
+    PB_CHECK(message.SerializePartialToCodedStream(&coded));
+  }
+  return bytes;
+}
+
+Vec3d ToVec3(const google::protobuf::RepeatedField<double>& f, Vec3d fallback = {}) {
+  return f.size() == 3 ? Vec3d(f[0], f[1], f[2]) : fallback;
+}
+
+// Unit vector along a validated non-zero finite vector, scaled first so that tiny or huge
+// components neither under- nor overflow.
+Vec3d UnitVector(const Vec3d& v) {
+  return Normalize(v / MaxComponent(Abs(v)));
+}
+
+double CosDegrees(double degrees) {
+  return degrees == 0 ? 1.0 : std::cos(degrees * (M_PI / 180));
+}
+
+struct Box {
+  Vec3d lo{DBL_MAX, DBL_MAX, DBL_MAX};
+  Vec3d hi{-DBL_MAX, -DBL_MAX, -DBL_MAX};
+  void Add(const Vec3d& p) {
+    lo = Min(lo, p);
+    hi = Max(hi, p);
+  }
+};
+
+// The bytes of a mesh or environment map, from `file` or `blob`; `fieldPath` names the referencing
+// field for errors.
+absl::StatusOr<std::string> ReadAsset(const std::string& file, const v1::Digest* blob,
+                                      const std::string& path, const AssetSource& assets,
+                                      const JobLimits& limits) {
+  const std::string fieldPath = path + (file.empty() ? ".blob" : ".file");
+  absl::StatusOr<std::string> bytes =
+      file.empty() ? assets.ReadBlob(*blob, fieldPath) : assets.ReadFile(file, fieldPath);
+  if (!bytes.ok()) return bytes.status();
+  if (limits.maxAssetBytes > 0 && int64_t(bytes->size()) > limits.maxAssetBytes) {
+    return FieldError(
+        fieldPath, Num(bytes->size()) + " bytes, above the limit of " + Num(limits.maxAssetBytes));
+  }
+  return bytes;
+}
+
+std::string AssetName(const std::string& file, const v1::Digest& blob) {
+  return file.empty() ? "blob " + blob.hash() : file;
+}
+
+// Builds the world-space mesh of job mesh `i` and makes its reference canonical.
+class MeshBuilder {
+ public:
+  MeshBuilder(const AssetSource& assets, const JobLimits& limits)
+      : assets_(assets), limits_(limits) {}
+
+  absl::Status Add(const v1::Mesh& spec, const std::string& path, uint32_t material,
+                   v1::Mesh* canonical, Scene* scene) {
+    job_internal::ImportedMesh raw;
+    if (!spec.file().empty() || spec.has_blob()) {
+      PB_ASSIGN_OR_RETURN(const std::string bytes,
+                          ReadAsset(spec.file(), &spec.blob(), path, assets_, limits_));
+      const std::string format = *MeshFormatOf(spec);  // validated
+      if (!spec.file().empty()) *canonical->mutable_blob() = DigestOf(bytes);
+      canonical->clear_file();
+      canonical->set_format(format);
+      const std::string fieldPath = path + (spec.file().empty() ? ".blob" : ".file");
+      PB_ASSIGN_OR_RETURN(
+          raw, job_internal::ImportMesh(bytes, format, AssetName(spec.file(), spec.blob()),
+                                        fieldPath, triangles_, limits_.maxTriangles));
+    } else {
+      raw.positions.reserve(size_t(spec.positions_size() / 3));
+      for (int k = 0; k + 2 < spec.positions_size(); k += 3)
+        raw.positions.emplace_back(spec.positions(k), spec.positions(k + 1), spec.positions(k + 2));
+      raw.indices.assign(spec.indices().begin(), spec.indices().end());
+    }
+    triangles_ += int64_t(raw.indices.size() / 3);
+
+    TriangleMesh mesh;
+    mesh.name = spec.name();
+    mesh.material = material;
+    mesh.positions = std::move(raw.positions);
+    if (spec.transform_size() == 16) {
+      const auto& t = spec.transform();
+      for (Vec3d& p : mesh.positions) {
+        const double x = p.x, y = p.y, z = p.z;
+        p = {t[0] * x + t[1] * y + t[2] * z + t[3], t[4] * x + t[5] * y + t[6] * z + t[7],
+             t[8] * x + t[9] * y + t[10] * z + t[11]};
+        if (!IsFinite(p)) {
+          return FieldError(path + ".transform", "transformed positions overflow");
+        }
+      }
+    }
+
+    // Drop triangles without a meaningful normal: zero area (repeated or collinear vertices), or
+    // so thin that the cross product is rounding noise (sin of the angle at a below 1e-14).
+    int64_t dropped = 0;
+    mesh.indices.reserve(raw.indices.size());
+    for (size_t k = 0; k + 2 < raw.indices.size(); k += 3) {
+      const Vec3d& a = mesh.positions[raw.indices[k]];
+      const Vec3d e1 = mesh.positions[raw.indices[k + 1]] - a;
+      const Vec3d e2 = mesh.positions[raw.indices[k + 2]] - a;
+      const double n = Length(Cross(e1, e2));
+      if (!(n >= DBL_MIN && std::isfinite(n) && n > 1e-14 * Length(e1) * Length(e2))) {
+        ++dropped;
+        continue;
+      }
+      mesh.indices.insert(mesh.indices.end(), raw.indices.begin() + k, raw.indices.begin() + k + 3);
+    }
+    if (dropped > 0) {
+      Logger("job")->info("{}: dropped {} zero-area triangle(s) of {}", path, dropped,
+                          raw.indices.size() / 3);
+    }
+    if (mesh.indices.empty()) {
+      return FieldError(path, "no triangle with a non-zero area");
+    }
+    scene->meshes.push_back(std::move(mesh));
+    return absl::OkStatus();
+  }
+
+ private:
+  const AssetSource& assets_;
+  const JobLimits& limits_;
+  int64_t triangles_ = 0;
+};
+
+absl::Status BuildEnvironment(const v1::Environment& spec, const AssetSource& assets,
+                              const JobLimits& limits, v1::Environment* canonical,
+                              Environment* env) {
+  if (spec.has_uniform()) {
+    const Vec3d radiance = ToVec3(spec.uniform().radiance());
+    if (MaxComponent(radiance) > 0) {
+      env->kind = Environment::Kind::kUniform;
+      env->radiance = radiance;
+    }
+    return absl::OkStatus();
+  }
+  if (!spec.has_map()) return absl::OkStatus();
+  const v1::EnvironmentMap& m = spec.map();
+  const std::string path = "scene.environment.map";
+  // Read even with scale 0, so that a missing file is reported whatever the scale.
+  PB_ASSIGN_OR_RETURN(const std::string bytes,
+                      ReadAsset(m.file(), &m.blob(), path, assets, limits));
+  PB_ASSIGN_OR_RETURN(EnvironmentMap map, job_internal::DecodeEnvironmentMap(
+                                              bytes, AssetName(m.file(), m.blob()),
+                                              path + (m.file().empty() ? ".blob" : ".file"),
+                                              limits.maxEnvironmentPixels));
+  v1::EnvironmentMap* c = canonical->mutable_map();
+  if (!m.file().empty()) *c->mutable_blob() = DigestOf(bytes);
+  c->clear_file();
+
+  map.scale = m.has_scale() ? m.scale() : 1;
+  map.worldFromMap = EnvironmentWorldFromMap(m.up(), m.rotation_deg());
+  map.digest = Sha256Hex(bytes);
+  if (map.scale > 0) {
+    env->kind = Environment::Kind::kMap;
+    env->map = std::make_shared<const EnvironmentMap>(std::move(map));
+  }
+  return absl::OkStatus();
+}
+
+Light BuildLight(const v1::Light& l) {
+  switch (l.kind_case()) {
+    case v1::Light::kSpot: {
+      const v1::SpotLight& s = l.spot();
+      return SpotLight{ToVec3(s.position()), UnitVector(ToVec3(s.direction())),
+                       ToVec3(s.intensity()), CosDegrees(s.inner_angle_deg()),
+                       CosDegrees(s.outer_angle_deg())};
+    }
+    case v1::Light::kDirectional: {
+      const v1::DirectionalLight& d = l.directional();
+      return DirectionalLight{UnitVector(ToVec3(d.direction())), ToVec3(d.irradiance()),
+                              CosDegrees(d.angular_diameter_deg() / 2)};
+    }
+    case v1::Light::kRect: {
+      const v1::RectLight& r = l.rect();
+      return RectLight{ToVec3(r.corner()), ToVec3(r.edge1()), ToVec3(r.edge2()),
+                       ToVec3(r.radiance()), r.two_sided()};
+    }
+    case v1::Light::kDisk: {
+      const v1::DiskLight& d = l.disk();
+      return DiskLight{ToVec3(d.center()), UnitVector(ToVec3(d.normal())), d.radius(),
+                       ToVec3(d.radiance()), d.two_sided()};
+    }
+    case v1::Light::kSphere: {
+      const v1::SphereLight& s = l.sphere();
+      return SphereLight{ToVec3(s.center()), s.radius(), ToVec3(s.radiance())};
+    }
+    case v1::Light::kPoint:
+    default: {
+      const v1::PointLight& p = l.point();
+      return PointLight{ToVec3(p.position()), ToVec3(p.intensity())};
+    }
+  }
+}
+
+// Adds the finite extent of `light` (directional lights have none).
+void AddLight(const Light& light, Box* box) {
+  if (const auto* p = std::get_if<PointLight>(&light)) box->Add(p->position);
+  if (const auto* s = std::get_if<SpotLight>(&light)) box->Add(s->position);
+  if (const auto* r = std::get_if<RectLight>(&light)) {
+    box->Add(r->corner);
+    box->Add(r->corner + r->edge1);
+    box->Add(r->corner + r->edge2);
+    box->Add(r->corner + r->edge1 + r->edge2);
+  }
+  if (const auto* d = std::get_if<DiskLight>(&light)) {
+    // A disk's extent along axis i is radius * sqrt(1 - n_i^2).
+    Vec3d half;
+    for (int i = 0; i < 3; ++i)
+      half[i] = d->radius * std::sqrt(std::max(0.0, 1 - d->normal[i] * d->normal[i]));
+    box->Add(d->center - half);
+    box->Add(d->center + half);
+  }
+  if (const auto* s = std::get_if<SphereLight>(&light)) {
+    box->Add(s->center - Vec3d(s->radius, s->radius, s->radius));
+    box->Add(s->center + Vec3d(s->radius, s->radius, s->radius));
+  }
+}
+
+}  // namespace
+
+absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource& assets,
+                                     const JobLimits& limits) {
+  PB_RETURN_IF_ERROR(ValidateJobSpec(spec, limits));
+  BakeJob job;
+  job.settings = ResolveSettings(spec.settings());
+  job.grid = ResolveGrid(spec.grid());
+  const v1::Scene& scene = spec.scene();
+  v1::Scene canonical = scene;
+  Scene& out = job.scene;
+
+  std::map<std::string, uint32_t> materialIndex;
+  for (const v1::Material& m : scene.materials()) {
+    materialIndex.emplace(m.name(), uint32_t(out.materials.size()));
+    out.materials.push_back({m.name(), ToVec3(m.albedo()), ToVec3(m.emission())});
+  }
+
+  MeshBuilder meshes(assets, limits);
+  for (int i = 0; i < scene.meshes_size(); ++i) {
+    const v1::Mesh& m = scene.meshes(i);
+    PB_RETURN_IF_ERROR(meshes.Add(m, Index("scene.meshes", i), materialIndex.at(m.material()),
+                                  canonical.mutable_meshes(i), &out));
+  }
+  for (const v1::Light& l : scene.lights()) out.lights.push_back(BuildLight(l));
+  PB_RETURN_IF_ERROR(BuildEnvironment(scene.environment(), assets, limits,
+                                      canonical.mutable_environment(), &out.environment));
+  if (!scene.has_environment()) canonical.clear_environment();
+
+  if (scene.has_medium()) {
+    const v1::Medium& m = scene.medium();
+    Medium medium{ToVec3(m.sigma_a()), ToVec3(m.sigma_s()), m.g(), {}, {}};
+    if (MaxComponent(medium.sigmaA) > 0 || MaxComponent(medium.sigmaS) > 0) {
+      Box box;
+      for (const TriangleMesh& mesh : out.meshes)
+        for (uint32_t index : mesh.indices) box.Add(mesh.positions[index]);
+      for (const Light& light : out.lights) AddLight(light, &box);
+      const ProbeGrid& g = job.grid;
+      box.Add(g.origin);
+      box.Add(g.Position(g.counts[0] - 1, g.counts[1] - 1, g.counts[2] - 1));
+      box.Add(ToVec3(spec.grid().max()));
+      const double pad =
+          1e-4 * Length(box.hi - box.lo) +
+          1e-6 * std::max(1.0, std::max(MaxComponent(Abs(box.lo)), MaxComponent(Abs(box.hi))));
+      medium.boundsMin = box.lo - Vec3d(pad, pad, pad);
+      medium.boundsMax = box.hi + Vec3d(pad, pad, pad);
+      out.medium = medium;
+    }
+  }
+
+  job.sceneDigest = Sha256Hex(DeterministicBytes(canonical));
+  v1::JobSpec canonicalJob;
+  *canonicalJob.mutable_scene() = std::move(canonical);
+  *canonicalJob.mutable_grid() = spec.grid();
+  *canonicalJob.mutable_settings() = SettingsToProto(job.settings);
+  job.jobDigest = Sha256Hex(DeterministicBytes(canonicalJob) +
+                            "\nprobebake-baker-version=" + std::to_string(kBakerVersion));
+  job.settingsJson = SettingsToJson(job.settings);
+
+  int64_t triangles = 0;
+  for (const TriangleMesh& mesh : out.meshes) triangles += int64_t(mesh.TriangleCount());
+  Logger("job")->info("job {}: {} meshes, {} triangles, {} lights, {} probes, order {}",
+                      job.jobDigest.substr(0, 12), out.meshes.size(), triangles, out.lights.size(),
+                      job.grid.ProbeCount(), job.settings.shOrder);
+  return job;
+}
+
+absl::StatusOr<BakeJob> LoadBakeJob(const std::string& path, const JobLimits& limits) {
+  PB_ASSIGN_OR_RETURN(const v1::JobSpec spec, ReadJobFile(path));
+  const LocalAssetSource assets(JobFileDir(path), "", limits.maxAssetBytes);
+  absl::StatusOr<BakeJob> job = BuildBakeJob(spec, assets, limits);
+  if (!job.ok()) return job_internal::PrefixLines(job.status(), path);
+  return job;
+}
+
+}  // namespace probebake

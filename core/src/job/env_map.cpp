@@ -1,0 +1,124 @@
+#include "env_map.h"
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfIO.h>
+#include <OpenEXR/ImfInputFile.h>
+
+#include <cmath>
+#include <cstring>
+#include <exception>
+#include <stdexcept>
+
+#include "probebake/base/status.h"
+#include "text.h"
+
+namespace probebake::job_internal {
+namespace {
+
+// An Imf::IStream over bytes in memory (OpenEXR reads from files or from an IStream).
+class MemoryIStream final : public Imf::IStream {
+ public:
+  explicit MemoryIStream(std::string_view bytes) : Imf::IStream("<memory>"), bytes_(bytes) {}
+
+  bool read(char c[], int n) override {
+    if (n < 0 || uint64_t(n) > bytes_.size() - std::min<uint64_t>(position_, bytes_.size())) {
+      throw std::runtime_error("unexpected end of file");
+    }
+    std::memcpy(c, bytes_.data() + position_, size_t(n));
+    position_ += uint64_t(n);
+    return position_ < bytes_.size();
+  }
+  uint64_t tellg() override { return position_; }
+  void seekg(uint64_t position) override { position_ = position; }
+
+ private:
+  std::string_view bytes_;
+  uint64_t position_ = 0;
+};
+
+}  // namespace
+
+absl::StatusOr<EnvironmentMap> DecodeEnvironmentMap(std::string_view bytes, const std::string& name,
+                                                    const std::string& fieldPath,
+                                                    int64_t maxPixels) {
+  const std::string what = Quoted(name);
+  EnvironmentMap map;
+  try {
+    MemoryIStream stream(bytes);
+    Imf::InputFile file(stream);
+    const Imf::Header& header = file.header();
+    const Imath::Box2i window = header.dataWindow();
+    const int64_t width = int64_t(window.max.x) - window.min.x + 1;
+    const int64_t height = int64_t(window.max.y) - window.min.y + 1;
+    if (width < 1 || height < 1) return FieldError(fieldPath, what + " has an empty data window");
+    if (maxPixels > 0 && width * height > maxPixels) {
+      return FieldError(fieldPath, what + " has " + Num(width) + " x " + Num(height) +
+                                       " pixels, above the limit of " + Num(maxPixels));
+    }
+
+    const Imf::ChannelList& channels = header.channels();
+    const bool rgb =
+        channels.findChannel("R") && channels.findChannel("G") && channels.findChannel("B");
+    const bool grey = !rgb && channels.findChannel("Y") != nullptr;
+    if (!rgb && !grey) {
+      std::string names;
+      for (auto it = channels.begin(); it != channels.end(); ++it)
+        names += std::string(names.empty() ? "" : ", ") + it.name();
+      return FieldError(fieldPath, what + " has no R, G, B or Y channels (found: " + names + ")");
+    }
+    if (grey && (channels.findChannel("RY") || channels.findChannel("BY"))) {
+      return FieldError(fieldPath, what + " is a luminance/chroma image; save it as RGB");
+    }
+    for (const char* channel : {"R", "G", "B", "Y"}) {
+      const Imf::Channel* c = channels.findChannel(channel);
+      if (c != nullptr && (c->xSampling != 1 || c->ySampling != 1)) {
+        return FieldError(fieldPath, what + " has a subsampled channel " + channel);
+      }
+    }
+
+    map.width = int(width);
+    map.height = int(height);
+    map.dataWindowMinX = window.min.x;
+    map.dataWindowMinY = window.min.y;
+    map.rgb.assign(size_t(width * height * 3), 0.0f);
+    // FLOAT slices, never half: a sun is brighter than half's largest value (65504).
+    Imf::FrameBuffer frame;
+    const size_t xStride = 3 * sizeof(float), yStride = xStride * size_t(width);
+    if (rgb) {
+      for (int c = 0; c < 3; ++c) {
+        frame.insert(c == 0   ? "R"
+                     : c == 1 ? "G"
+                              : "B",
+                     Imf::Slice::Make(Imf::FLOAT, map.rgb.data() + c, window, xStride, yStride));
+      }
+    } else {
+      frame.insert("Y", Imf::Slice::Make(Imf::FLOAT, map.rgb.data(), window, xStride, yStride));
+    }
+    file.setFrameBuffer(frame);
+    file.readPixels(window.min.y, window.max.y);
+    if (grey) {
+      for (size_t p = 0; p < size_t(width * height); ++p) {
+        map.rgb[3 * p + 1] = map.rgb[3 * p + 2] = map.rgb[3 * p];
+      }
+    }
+  } catch (const std::exception& e) {
+    return FieldError(fieldPath, "cannot read " + what + " as OpenEXR: " + e.what());
+  }
+
+  for (size_t k = 0; k < map.rgb.size(); ++k) {
+    const float v = map.rgb[k];
+    if (!std::isfinite(v) || v < 0) {
+      const int64_t pixel = int64_t(k / 3);
+      return FieldError(fieldPath, what + " pixel (" + Num(map.dataWindowMinX + pixel % map.width) +
+                                       ", " + Num(map.dataWindowMinY + pixel / map.width) +
+                                       ") has " +
+                                       (std::isfinite(v) ? "a negative" : "a non-finite") +
+                                       " value (" + Num(double(v)) + ")");
+    }
+  }
+  return map;
+}
+
+}  // namespace probebake::job_internal

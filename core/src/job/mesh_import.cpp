@@ -1,0 +1,130 @@
+#include "mesh_import.h"
+
+#include <assimp/config.h>
+#include <assimp/postprocess.h>
+#include <assimp/scene.h>
+#include <assimp/Importer.hpp>
+
+#include <array>
+#include <exception>
+#include <utility>
+
+#include "probebake/base/status.h"
+#include "text.h"
+
+namespace probebake::job_internal {
+namespace {
+
+// Row-major 3x4 affine transform in double (the last row is (0, 0, 0, 1)).
+using Affine = std::array<double, 12>;
+
+Affine FromAssimp(const aiMatrix4x4& m) {
+  return {m.a1, m.a2, m.a3, m.a4, m.b1, m.b2, m.b3, m.b4, m.c1, m.c2, m.c3, m.c4};
+}
+
+Affine Compose(const Affine& a, const Affine& b) {  // a * b
+  Affine r{};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      double x = a[4 * i] * b[j] + a[4 * i + 1] * b[4 + j] + a[4 * i + 2] * b[8 + j];
+      if (j == 3) x += a[4 * i + 3];
+      r[4 * i + j] = x;
+    }
+  }
+  return r;
+}
+
+Vec3d Apply(const Affine& m, const aiVector3D& p) {
+  const double x = p.x, y = p.y, z = p.z;
+  return {m[0] * x + m[1] * y + m[2] * z + m[3], m[4] * x + m[5] * y + m[6] * z + m[7],
+          m[8] * x + m[9] * y + m[10] * z + m[11]};
+}
+
+}  // namespace
+
+absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::string& format,
+                                        const std::string& name, const std::string& fieldPath,
+                                        int64_t trianglesBefore, int64_t maxTriangles) {
+  const std::string what = Quoted(name);
+  if (bytes.empty())
+    return FieldError(fieldPath, "cannot import " + what + " as " + format + ": the file is empty");
+
+  Assimp::Importer importer;
+  // Points and lines are dropped entirely rather than kept as separate meshes.
+  importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
+                              aiPrimitiveType_POINT | aiPrimitiveType_LINE);
+  const unsigned flags =
+      aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_ValidateDataStructure;
+  const aiScene* scene = nullptr;
+  try {
+    scene = importer.ReadFileFromMemory(bytes.data(), bytes.size(), flags, format.c_str());
+  } catch (const std::exception& e) {
+    return FieldError(fieldPath, "cannot import " + what + " as " + format + ": " + e.what());
+  }
+  if (scene == nullptr) {
+    return FieldError(fieldPath,
+                      "cannot import " + what + " as " + format + ": " + importer.GetErrorString());
+  }
+
+  // Walk the node tree (explicitly: a file's nesting depth is not ours to trust), counting
+  // triangles before copying anything.
+  struct Instance {
+    const aiMesh* mesh;
+    Affine transform;
+  };
+  std::vector<Instance> instances;
+  int64_t triangles = trianglesBefore;
+  if (scene->mRootNode != nullptr) {
+    std::vector<std::pair<const aiNode*, Affine>> stack{
+        {scene->mRootNode, FromAssimp(scene->mRootNode->mTransformation)}};
+    while (!stack.empty()) {
+      const auto [node, transform] = stack.back();
+      stack.pop_back();
+      for (unsigned i = 0; i < node->mNumMeshes; ++i) {
+        if (node->mMeshes[i] >= scene->mNumMeshes) continue;
+        const aiMesh* mesh = scene->mMeshes[node->mMeshes[i]];
+        if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
+        instances.push_back({mesh, transform});
+        triangles += mesh->mNumFaces;
+        if (maxTriangles > 0 && triangles > maxTriangles) {
+          return FieldError(fieldPath, "the scene's triangles exceed the limit of " +
+                                           Num(maxTriangles) + " with " + what);
+        }
+      }
+      for (unsigned i = 0; i < node->mNumChildren; ++i) {
+        const aiNode* child = node->mChildren[i];
+        stack.emplace_back(child, Compose(transform, FromAssimp(child->mTransformation)));
+      }
+    }
+  }
+
+  ImportedMesh out;
+  for (const Instance& instance : instances) {
+    const aiMesh* mesh = instance.mesh;
+    const size_t base = out.positions.size();
+    if (base + mesh->mNumVertices > size_t(UINT32_MAX)) {
+      return FieldError(fieldPath, what + " has too many vertices");
+    }
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const Vec3d p = Apply(instance.transform, mesh->mVertices[v]);
+      if (!IsFinite(p)) {
+        return FieldError(fieldPath, what + " has a non-finite vertex position");
+      }
+      out.positions.push_back(p);
+    }
+    for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+      const aiFace& face = mesh->mFaces[f];
+      if (face.mNumIndices != 3) continue;  // points and lines sorted into this mesh
+      for (int k = 0; k < 3; ++k) {
+        if (face.mIndices[k] >= mesh->mNumVertices) {
+          return FieldError(fieldPath, what + " has a vertex index out of range");
+        }
+        out.indices.push_back(uint32_t(base + face.mIndices[k]));
+      }
+    }
+  }
+  if (out.indices.empty()) return FieldError(fieldPath, what + " contains no triangles");
+  return out;
+}
+
+}  // namespace probebake::job_internal

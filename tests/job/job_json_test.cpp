@@ -1,0 +1,190 @@
+// ParseJobJson / ReadJobFile: proto3 JSON with every error named by its JSON path.
+#include "probebake/job/job_json.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "job/test_util.h"
+
+namespace probebake {
+namespace {
+
+using testing::DataDir;
+using testing::HasFieldError;
+using testing::Patched;
+using testing::ReadText;
+
+std::string Example() {
+  return ReadText(DataDir() + "/example.json");
+}
+
+TEST(ParseJobJson, ExampleParses) {
+  const absl::StatusOr<v1::JobSpec> job = ParseJobJson(Example());
+  ASSERT_TRUE(job.ok()) << job.status();
+  ASSERT_EQ(job->scene().materials_size(), 2);
+  EXPECT_EQ(job->scene().materials(1).name(), "lamp");
+  ASSERT_EQ(job->scene().lights_size(), 6);
+  EXPECT_EQ(job->scene().lights(1).spot().outer_angle_deg(), 30);
+  EXPECT_EQ(job->scene().lights(2).directional().angular_diameter_deg(), 0.53);
+  EXPECT_EQ(job->grid().placement(), v1::Grid::OUTSIDE_GEOMETRY);
+  ASSERT_EQ(job->grid().counts_size(), 3);
+  EXPECT_EQ(job->grid().counts(2), 4);
+  EXPECT_EQ(job->settings().samples_per_probe(), 1024);
+  EXPECT_TRUE(job->settings().has_target_rel_error());
+  EXPECT_TRUE(job->settings().irradiance());
+  EXPECT_EQ(job->settings().window(), v1::BakeSettings::NONE);
+}
+
+TEST(ParseJobJson, UnknownFieldsAtEveryDepth) {
+  const std::string base = Example();
+  EXPECT_TRUE(
+      HasFieldError(ParseJobJson(Patched(base, "extra", "1")).status(), "extra", "unknown field"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "scene.fog", "{}")).status(), "scene.fog",
+                            "unknown field"));
+  EXPECT_TRUE(
+      HasFieldError(ParseJobJson(Patched(base, "scene.materials[1].albedoo", "[0, 0, 0]")).status(),
+                    "scene.materials[1].albedoo", "did you mean \"albedo\""));
+  EXPECT_TRUE(HasFieldError(
+      ParseJobJson(Patched(base, "scene.lights[3].rect.edgeOne", "[1, 0, 0]")).status(),
+      "scene.lights[3].rect.edgeOne", "unknown field"));
+  EXPECT_TRUE(
+      HasFieldError(ParseJobJson(Patched(base, "scene.environment.uniform.scale", "2")).status(),
+                    "scene.environment.uniform.scale", "unknown field"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "settings.shorder", "2")).status(),
+                            "settings.shorder", "did you mean \"shOrder\""));
+}
+
+TEST(ParseJobJson, ReportsEveryErrorOneLineEach) {
+  std::string json = Patched(Example(), "grid.bogus", "1");
+  json = Patched(json, "scene.lights[0].point.position[1]", "\"NaN\"");
+  json = Patched(json, "settings.window", "\"HANN\"");
+  const absl::Status s = ParseJobJson(json).status();
+  EXPECT_TRUE(HasFieldError(s, "grid.bogus", "unknown field"));
+  EXPECT_TRUE(HasFieldError(s, "scene.lights[0].point.position[1]", "\"NaN\" is not allowed"));
+  EXPECT_TRUE(HasFieldError(s, "settings.window", "unknown value \"HANN\""));
+  EXPECT_EQ(std::count(s.message().begin(), s.message().end(), '\n'), 2) << s.message();
+}
+
+TEST(ParseJobJson, NonFiniteStringsAreRejectedWithThePath) {
+  const std::string base = Example();
+  EXPECT_TRUE(HasFieldError(
+      ParseJobJson(Patched(base, "scene.lights[0].point.position[1]", "\"NaN\"")).status(),
+      "scene.lights[0].point.position[1]", "\"NaN\" is not allowed"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "scene.medium.g", "\"Infinity\"")).status(),
+                            "scene.medium.g", "\"Infinity\" is not allowed"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "grid.min[0]", "\"-Infinity\"")).status(),
+                            "grid.min[0]", "\"-Infinity\" is not allowed"));
+  EXPECT_TRUE(HasFieldError(
+      ParseJobJson(Patched(base, "scene.materials[0].albedo[2]", "\"1e999\"")).status(),
+      "scene.materials[0].albedo[2]", "out of the range of a double"));
+}
+
+TEST(ParseJobJson, WrongTypesNameTheField) {
+  const std::string base = Example();
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "settings.shOrder", "2.5")).status(),
+                            "settings.shOrder", "expected an integer, got 2.5"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "settings.shOrder", "\"two\"")).status(),
+                            "settings.shOrder", "expected an integer"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "grid.counts[1]", "-3e10")).status(),
+                            "grid.counts[1]", "out of range"));
+  EXPECT_TRUE(
+      HasFieldError(ParseJobJson(Patched(base, "scene.meshes[1].indices[0]", "-1")).status(),
+                    "scene.meshes[1].indices[0]", "out of range"));
+  EXPECT_TRUE(
+      HasFieldError(ParseJobJson(Patched(base, "scene.lights[4].disk.radius", "\"big\"")).status(),
+                    "scene.lights[4].disk.radius", "expected a number, got the string \"big\""));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "scene.meshes[0].name", "3")).status(),
+                            "scene.meshes[0].name", "expected a string"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "settings.irradiance", "\"yes\"")).status(),
+                            "settings.irradiance", "expected true or false"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "grid.min", "0")).status(), "grid.min",
+                            "expected an array"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "scene.medium", "[1]")).status(),
+                            "scene.medium", "expected an object"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "grid.max[2]", "null")).status(),
+                            "grid.max[2]", "null is not allowed"));
+}
+
+TEST(ParseJobJson, BadEnumNames) {
+  const std::string base = Example();
+  EXPECT_TRUE(HasFieldError(
+      ParseJobJson(Patched(base, "grid.placement", "\"EVERYWHERE\"")).status(), "grid.placement",
+      "unknown value \"EVERYWHERE\" (expected one of ALL, OUTSIDE_GEOMETRY, "
+      "NEAR_SURFACES)"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "settings.window", "\"none\"")).status(),
+                            "settings.window", "unknown value \"none\""));
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "settings.window", "9")).status(),
+                            "settings.window", "unknown value 9"));
+  // A defined number is proto3 JSON.
+  const absl::StatusOr<v1::JobSpec> job = ParseJobJson(Patched(base, "settings.window", "2"));
+  ASSERT_TRUE(job.ok()) << job.status();
+  EXPECT_EQ(job->settings().window(), v1::BakeSettings::HANNING);
+}
+
+TEST(ParseJobJson, TwoKindsOfOneLight) {
+  const std::string json =
+      Patched(Example(), "scene.lights[0].sphere", R"({"center": [0, 0, 1], "radius": 1})");
+  EXPECT_TRUE(HasFieldError(ParseJobJson(json).status(), "scene.lights[0].sphere",
+                            "only one of point, spot, directional, rect, disk, sphere"));
+}
+
+TEST(ParseJobJson, SameFieldUnderBothNames) {
+  const std::string json = Patched(Example(), "settings.sh_order", "3");
+  EXPECT_TRUE(HasFieldError(ParseJobJson(json).status(), "settings.shOrder", "given twice") ||
+              HasFieldError(ParseJobJson(json).status(), "settings.sh_order", "given twice"));
+}
+
+TEST(ParseJobJson, ProtoJsonFormsAreAccepted) {
+  std::string json = Patched(Example(), "settings.samplesPerProbe", "\"4096\"");  // int64 string
+  json = Patched(json, "settings.seed", "\"18446744073709551615\"");
+  json = Patched(json, "settings", R"({"sh_order": 3, "seed": "18446744073709551615",
+                                        "targetRelError": "0.25", "window": "NONE"})");
+  json = Patched(json, "scene.medium", "null");
+  const absl::StatusOr<v1::JobSpec> job = ParseJobJson(json);
+  ASSERT_TRUE(job.ok()) << job.status();
+  EXPECT_EQ(job->settings().sh_order(), 3);
+  EXPECT_EQ(job->settings().seed(), 18446744073709551615ull);
+  EXPECT_EQ(job->settings().target_rel_error(), 0.25);
+  EXPECT_FALSE(job->scene().has_medium());
+}
+
+TEST(ParseJobJson, ByteOrderMarkIsSkipped) {
+  EXPECT_TRUE(ParseJobJson("\xEF\xBB\xBF" + Example()).ok());
+}
+
+TEST(ParseJobJson, SyntaxErrorsGiveLineAndColumn) {
+  const absl::Status s = ParseJobJson("{\n  \"grid\": {\"min\": [1 2]}\n}").status();
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(std::string(s.message()).find("invalid JSON at line 2, column 22: "), std::string::npos)
+      << s.message();
+  EXPECT_EQ(std::string(s.message()).find('\n'), std::string::npos) << s.message();
+  const absl::Status empty = ParseJobJson("").status();
+  EXPECT_EQ(empty.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(std::string(empty.message()).find("invalid JSON"), std::string::npos);
+  // NaN as a bare literal is not JSON.
+  EXPECT_EQ(ParseJobJson(R"({"grid": {"min": [NaN, 0, 0]}})").status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST(ParseJobJson, TopLevelMustBeAnObject) {
+  EXPECT_TRUE(HasFieldError(ParseJobJson("[1, 2]").status(), "job", "expected an object"));
+}
+
+TEST(ReadJobFile, MessagesNameTheFile) {
+  testing::TempDir dir;
+  const std::string missing = dir.File("missing.json");
+  const absl::Status s = ReadJobFile(missing).status();
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(std::string(s.message()).find(missing + ": cannot read"), std::string::npos) << s;
+
+  const std::string bad = dir.Write("bad.json", Patched(Example(), "settings.shOrder", "2.5"));
+  EXPECT_TRUE(
+      HasFieldError(ReadJobFile(bad).status(), bad + ": settings.shOrder", "expected an integer"));
+
+  EXPECT_TRUE(HasFieldError(ReadJobFile(dir.path()).status(), dir.path(), "not a regular file"));
+  EXPECT_TRUE(ReadJobFile(DataDir() + "/example.json").ok());
+}
+
+}  // namespace
+}  // namespace probebake

@@ -1,0 +1,329 @@
+// Mesh import through BuildBakeJob: OBJ, PLY (ascii and binary), glTF with an embedded buffer and
+// GLB, node and job transforms, double precision far from the origin, zero-area triangles, limits.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstring>
+#include <set>
+#include <tuple>
+
+#include "absl/strings/escaping.h"
+#include "job/test_util.h"
+#include "probebake/job/job.h"
+#include "probebake/job/job_json.h"
+
+namespace probebake {
+namespace {
+
+using testing::HasFieldError;
+using testing::TempDir;
+
+constexpr char kIdentity[] = "[1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]";
+
+// A job with one mesh read from `file` (in `dir`) and the given transform.
+absl::StatusOr<BakeJob> BuildMeshJob(const TempDir& dir, const std::string& file,
+                                     const std::string& transform = kIdentity,
+                                     const JobLimits& limits = {}) {
+  const std::string json =
+      R"({"scene": {"materials": [{"name": "m"}], "meshes": [{"file": ")" + file +
+      R"(", "material": "m", "transform": )" + transform +
+      R"(}]}, "grid": {"min": [0, 0, 0], "max": [0, 0, 0], "counts": [1, 1, 1]}})";
+  const absl::StatusOr<v1::JobSpec> job = ParseJobJson(json);
+  EXPECT_TRUE(job.ok()) << job.status();
+  if (!job.ok()) return job.status();
+  return BuildBakeJob(*job, LocalAssetSource(dir.path()), limits);
+}
+
+using Point = std::tuple<double, double, double>;
+
+// The distinct vertex positions the triangles of `mesh` use.
+std::set<Point> UsedPositions(const TriangleMesh& mesh) {
+  std::set<Point> out;
+  for (uint32_t i : mesh.indices)
+    out.insert({mesh.positions[i].x, mesh.positions[i].y, mesh.positions[i].z});
+  return out;
+}
+
+Vec3d Normal(const TriangleMesh& mesh, size_t t) {
+  const Vec3d a = mesh.positions[mesh.indices[3 * t]];
+  return Cross(mesh.positions[mesh.indices[3 * t + 1]] - a,
+               mesh.positions[mesh.indices[3 * t + 2]] - a);
+}
+
+double Area(const TriangleMesh& mesh) {
+  double area = 0;
+  for (size_t t = 0; t < mesh.TriangleCount(); ++t) area += Length(Normal(mesh, t)) / 2;
+  return area;
+}
+
+// A quad (0,0,0) (2,0,0) (2,1,0) (0,1,0) facing +z and a triangle (0,0,1) (-1.25,0,1) (0,0.5,1)
+// facing -z ((-1.25, 0, 0) x (0, 0.5, 0) = (0, 0, -0.625)), in two objects, with a line element and
+// an unresolvable mtllib.
+constexpr char kObj[] = R"(mtllib missing.mtl
+o quad
+v 0 0 0
+v 2 0 0
+v 2 1 0
+v 0 1 0
+usemtl red
+f 1 2 3 4
+o tri
+v 0 0 1
+v 0 0.5 1
+v -1.25 0 1
+f 5 7 6
+l 1 5
+)";
+
+TEST(MeshImport, ObjWithTransform) {
+  TempDir dir;
+  dir.Write("scene.obj", kObj);
+  // p' = (2x + 10, y + 20, -z + 30): a mirror, so the winding flips too.
+  const absl::StatusOr<BakeJob> built =
+      BuildMeshJob(dir, "scene.obj", "[2,0,0,10, 0,1,0,20, 0,0,-1,30, 0,0,0,1]");
+  ASSERT_TRUE(built.ok()) << built.status();
+  ASSERT_EQ(built->scene.meshes.size(), 1u);
+  const TriangleMesh& mesh = built->scene.meshes[0];
+  EXPECT_EQ(mesh.TriangleCount(), 3u);
+  const std::set<Point> expected = {{10, 20, 30}, {14, 20, 30},   {14, 21, 30}, {10, 21, 30},
+                                    {10, 20, 29}, {10, 20.5, 29}, {7.5, 20, 29}};
+  EXPECT_EQ(UsedPositions(mesh), expected);
+  // Areas scale by |det| = 2: quad 2 -> 4, triangle 0.3125 -> 0.625.
+  EXPECT_EQ(Area(mesh), 4.625);
+  // Winding is kept: the geometric normal (b - a) x (c - a) transforms with the cofactor matrix
+  // det(M) M^-T = diag(-1, -2, 2), so the quad (file normal +z, now at z = 30) still faces +z and
+  // the triangle (file normal -z, now at z = 29) still faces -z.
+  for (size_t t = 0; t < mesh.TriangleCount(); ++t) {
+    const Vec3d n = Normal(mesh, t);
+    const double z = mesh.positions[mesh.indices[3 * t]].z;
+    EXPECT_EQ(n.z > 0, z == 30) << "triangle " << t << " normal " << n;
+  }
+}
+
+std::string PlyHeader(const char* format) {
+  return std::string("ply\nformat ") + format +
+         " 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\n"
+         "element face 2\nproperty list uchar int vertex_indices\nend_header\n";
+}
+
+// Vertices of the PLY tests and their faces: a quad and a triangle.
+constexpr float kPlyVertices[5][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}, {0.5f, 0.5f, 2}};
+
+void ExpectPlyMesh(const absl::StatusOr<BakeJob>& built) {
+  ASSERT_TRUE(built.ok()) << built.status();
+  const TriangleMesh& mesh = built->scene.meshes[0];
+  EXPECT_EQ(mesh.TriangleCount(), 3u);
+  // Job transform: translate by (0, 0, 5).
+  std::set<Point> expected;
+  for (const auto& v : kPlyVertices) expected.insert({v[0], v[1], double(v[2]) + 5});
+  EXPECT_EQ(UsedPositions(mesh), expected);
+  EXPECT_EQ(Area(mesh), 1 + Length(Cross(Vec3d(1, 0, 0) - Vec3d(0.5, 0.5, 2),
+                                         Vec3d(1, 1, 0) - Vec3d(0.5, 0.5, 2))) /
+                                2);
+}
+
+TEST(MeshImport, PlyAscii) {
+  TempDir dir;
+  std::string ply = PlyHeader("ascii");
+  for (const auto& v : kPlyVertices)
+    ply += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\n";
+  ply += "4 0 1 2 3\n3 4 1 2\n";
+  dir.Write("m.ply", ply);
+  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]"));
+}
+
+TEST(MeshImport, PlyBinaryLittleEndian) {
+  TempDir dir;
+  std::string ply = PlyHeader("binary_little_endian");
+  auto put = [&ply](const void* p, size_t n) { ply.append(static_cast<const char*>(p), n); };
+  for (const auto& v : kPlyVertices) put(v, sizeof v);
+  const unsigned char four = 4, three = 3;
+  const int32_t quad[4] = {0, 1, 2, 3}, tri[3] = {4, 1, 2};
+  put(&four, 1);
+  put(quad, sizeof quad);
+  put(&three, 1);
+  put(tri, sizeof tri);
+  dir.Write("m.ply", ply);
+  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]"));
+}
+
+// glTF 2.0 pieces: one mesh (a right triangle (0,0,0) (1,0,0) (0,1,0), uint16 indices) placed by
+// two nodes: node 0 translates by (100, 0, 0) and has child node 1 scaling by 2 with the mesh;
+// node 2 holds the mesh untransformed.
+std::string GltfBuffer() {
+  const float positions[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  const uint16_t indices[4] = {0, 1, 2, 0};  // padded to 4-byte length
+  std::string bin(reinterpret_cast<const char*>(positions), sizeof positions);
+  bin.append(reinterpret_cast<const char*>(indices), sizeof indices);
+  return bin;
+}
+
+std::string GltfJson(const std::string& bufferUri, size_t bufferLength) {
+  const std::string uri = bufferUri.empty() ? "" : R"("uri": ")" + bufferUri + R"(", )";
+  return R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 2]}],
+    "nodes": [{"translation": [100, 0, 0], "children": [1]}, {"mesh": 0, "scale": [2, 2, 2]},
+              {"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": 4}]}],
+    "buffers": [{)" +
+         uri + R"("byteLength": )" + std::to_string(bufferLength) + R"(}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                    {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                   "min": [0, 0, 0], "max": [1, 1, 0]},
+                  {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}]})";
+}
+
+void ExpectGltfMesh(const absl::StatusOr<BakeJob>& built) {
+  ASSERT_TRUE(built.ok()) << built.status();
+  const TriangleMesh& mesh = built->scene.meshes[0];
+  ASSERT_EQ(mesh.TriangleCount(), 2u);  // one mesh, two instances
+  // Node transforms, then the job's quarter turn about z: (x, y, z) -> (-y, x, z).
+  const std::set<Point> expected = {{0, 100, 0}, {0, 102, 0}, {-2, 100, 0},  // T(100) S(2)
+                                    {0, 0, 0},   {0, 1, 0},   {-1, 0, 0}};   // untransformed
+  EXPECT_EQ(UsedPositions(mesh), expected);
+  for (size_t t = 0; t < 2; ++t) EXPECT_GT(Normal(mesh, t).z, 0) << t;  // winding kept
+}
+
+constexpr char kQuarterTurn[] = "[0,-1,0,0, 1,0,0,0, 0,0,1,0, 0,0,0,1]";
+
+TEST(MeshImport, GltfWithEmbeddedBuffer) {
+  TempDir dir;
+  const std::string bin = GltfBuffer();
+  dir.Write("m.gltf", GltfJson("data:application/octet-stream;base64," + absl::Base64Escape(bin),
+                               bin.size()));
+  ExpectGltfMesh(BuildMeshJob(dir, "m.gltf", kQuarterTurn));
+}
+
+TEST(MeshImport, Glb) {
+  TempDir dir;
+  const std::string bin = GltfBuffer();
+  std::string json = GltfJson("", bin.size());
+  while (json.size() % 4) json += ' ';
+  std::string glb;
+  auto u32 = [&glb](uint32_t x) { glb.append(reinterpret_cast<const char*>(&x), 4); };
+  u32(0x46546C67);  // "glTF"
+  u32(2);
+  u32(uint32_t(12 + 8 + json.size() + 8 + bin.size()));
+  u32(uint32_t(json.size()));
+  u32(0x4E4F534A);  // "JSON"
+  glb += json;
+  u32(uint32_t(bin.size()));
+  u32(0x004E4942);  // "BIN\0"
+  glb += bin;
+  dir.Write("m.glb", glb);
+  ExpectGltfMesh(BuildMeshJob(dir, "m.glb", kQuarterTurn));
+}
+
+TEST(MeshImport, FormatOverridesTheExtension) {
+  TempDir dir;
+  dir.Write("scene.txt", kObj);
+  const std::string json = R"({"scene": {"materials": [{"name": "m"}], "meshes": [{"file":
+      "scene.txt", "format": "OBJ", "material": "m"}]}, "grid": {"min": [0, 0, 0],
+      "max": [0, 0, 0], "counts": [1, 1, 1]}})";
+  const absl::StatusOr<v1::JobSpec> job = ParseJobJson(json);
+  ASSERT_TRUE(job.ok()) << job.status();
+  const absl::StatusOr<BakeJob> built = BuildBakeJob(*job, LocalAssetSource(dir.path()), {});
+  ASSERT_TRUE(built.ok()) << built.status();
+  EXPECT_EQ(built->scene.meshes[0].TriangleCount(), 3u);
+}
+
+TEST(MeshImport, BadFilesAreRejectedWithThePath) {
+  TempDir dir;
+  dir.Write("garbage.ply", "this is not a ply file");
+  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "garbage.ply").status(), "scene.meshes[0].file",
+                            "cannot import \"garbage.ply\" as ply"));
+  dir.Write("empty.obj", "");
+  EXPECT_TRUE(
+      HasFieldError(BuildMeshJob(dir, "empty.obj").status(), "scene.meshes[0].file", "empty"));
+  dir.Write("lines.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2\nl 2 3\n");
+  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "lines.obj").status(), "scene.meshes[0].file",
+                            "\"lines.obj\""));
+  dir.Write("external.gltf", GltfJson("external.bin", GltfBuffer().size()));
+  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "external.gltf").status(), "scene.meshes[0].file",
+                            "cannot import \"external.gltf\""));
+}
+
+TEST(MeshImport, TriangleLimitCountsFilesAndInlineMeshes) {
+  TempDir dir;
+  dir.Write("scene.obj", kObj);  // 3 triangles
+  JobLimits limits;
+  limits.maxTriangles = 2;
+  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "scene.obj", kIdentity, limits).status(),
+                            "scene.meshes[0].file", "exceed the limit of 2"));
+  limits.maxTriangles = 3;
+  EXPECT_TRUE(BuildMeshJob(dir, "scene.obj", kIdentity, limits).ok());
+
+  // An inline triangle first, then the file: 4 > 3.
+  const std::string json = R"({"scene": {"materials": [{"name": "m"}], "meshes": [
+      {"positions": [0,0,0, 1,0,0, 0,1,0], "indices": [0,1,2], "material": "m"},
+      {"file": "scene.obj", "material": "m"}]},
+      "grid": {"min": [0, 0, 0], "max": [0, 0, 0], "counts": [1, 1, 1]}})";
+  const absl::StatusOr<v1::JobSpec> job = ParseJobJson(json);
+  ASSERT_TRUE(job.ok()) << job.status();
+  EXPECT_TRUE(HasFieldError(BuildBakeJob(*job, LocalAssetSource(dir.path()), limits).status(),
+                            "scene.meshes[1].file", "exceed the limit of 3"));
+}
+
+absl::StatusOr<BakeJob> BuildInline(const std::string& positions, const std::string& indices,
+                                    const std::string& transform = kIdentity) {
+  const std::string json =
+      R"({"scene": {"materials": [{"name": "m"}], "meshes": [{"positions": )" + positions +
+      R"(, "indices": )" + indices + R"(, "material": "m", "transform": )" + transform +
+      R"(}]}, "grid": {"min": [0, 0, 0], "max": [0, 0, 0], "counts": [1, 1, 1]}})";
+  const absl::StatusOr<v1::JobSpec> job = ParseJobJson(json);
+  EXPECT_TRUE(job.ok()) << job.status();
+  if (!job.ok()) return job.status();
+  return BuildBakeJob(*job, LocalAssetSource(""), {});
+}
+
+TEST(MeshImport, ZeroAreaTrianglesAreDropped) {
+  // Triangle 0 is fine; 1 repeats a vertex; 2 is collinear (vertex 3 lies on edge 0-1).
+  const absl::StatusOr<BakeJob> built =
+      BuildInline("[0,0,0, 1,0,0, 0,1,0, 0.5,0,0]", "[0,1,2, 0,0,1, 0,1,3]");
+  ASSERT_TRUE(built.ok()) << built.status();
+  const TriangleMesh& mesh = built->scene.meshes[0];
+  ASSERT_EQ(mesh.TriangleCount(), 1u);
+  EXPECT_EQ(std::vector<uint32_t>(mesh.indices.begin(), mesh.indices.end()),
+            (std::vector<uint32_t>{0, 1, 2}));
+  EXPECT_TRUE(HasFieldError(BuildInline("[0,0,0, 1,0,0, 2,0,0]", "[0,1,2, 2,1,0]").status(),
+                            "scene.meshes[0]", "no triangle with a non-zero area"));
+}
+
+// SPEC 4a: a scene translated by 1e4 keeps its positions in double. 0.1 + 1e4 in float would be
+// 10000.099609375; in double it is the double nearest to 10000.1.
+TEST(MeshImport, TranslatedSceneKeepsDoublePrecision) {
+  const absl::StatusOr<BakeJob> built =
+      BuildInline("[0.1,0.2,0.3, 1.1,0.2,0.3, 0.1,1.2,0.3]", "[0,1,2]",
+                  "[1,0,0,10000, 0,1,0,-10000, 0,0,1,10000, 0,0,0,1]");
+  ASSERT_TRUE(built.ok()) << built.status();
+  const std::vector<Vec3d>& p = built->scene.meshes[0].positions;
+  ASSERT_EQ(p.size(), 3u);
+  const double x = 0.1, y = 0.2, z = 0.3;
+  EXPECT_EQ(p[0], Vec3d(x + 10000, y - 10000, z + 10000));
+  EXPECT_EQ(p[1].x, 1.1 + 10000);
+  EXPECT_EQ(p[2].y, 1.2 - 10000);
+  EXPECT_NE(p[0].x, double(float(x) + 10000.0f));
+  // Edge vectors agree with the untranslated edges to double rounding of the translation:
+  // |error| <= ulp(1e4) = 1.8e-12.
+  EXPECT_NEAR(p[1].x - p[0].x, 1.0, 2e-12);
+
+  // File meshes: the file's single-precision vertices (as assimp parsed them: the untranslated
+  // import), then the translation in double.
+  TempDir dir;
+  dir.Write("t.obj", "v 0.1 0.2 0.3\nv 1.1 0.2 0.3\nv 0.1 1.2 0.3\nf 1 2 3\n");
+  const absl::StatusOr<BakeJob> atOrigin = BuildMeshJob(dir, "t.obj");
+  const absl::StatusOr<BakeJob> moved =
+      BuildMeshJob(dir, "t.obj", "[1,0,0,10000, 0,1,0,-10000, 0,0,1,10000, 0,0,0,1]");
+  ASSERT_TRUE(atOrigin.ok()) << atOrigin.status();
+  ASSERT_TRUE(moved.ok()) << moved.status();
+  const std::vector<Vec3d>& o = atOrigin->scene.meshes[0].positions;
+  const std::vector<Vec3d>& q = moved->scene.meshes[0].positions;
+  ASSERT_EQ(o.size(), q.size());
+  EXPECT_NEAR(o[0].x, 0.1, 1e-8);  // the file's value, to float precision
+  for (size_t i = 0; i < o.size(); ++i)
+    EXPECT_EQ(q[i], Vec3d(o[i].x + 10000, o[i].y - 10000, o[i].z + 10000)) << i;
+  EXPECT_NE(q[0].x, double(float(o[0].x) + 10000.0f));
+}
+
+}  // namespace
+}  // namespace probebake
