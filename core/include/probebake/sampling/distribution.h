@@ -22,7 +22,9 @@
 // environment maps. u.y picks the row from the marginal (row sums), u.x the column from that row's
 // conditional; the remapped u is the position inside the chosen cell: the continuous point is
 // ((col + uRemapped.x) / cols, (row + uRemapped.y) / rows), whose density per unit area of
-// [0,1]^2 is pmf * rows * cols. All-zero tables are uniform as above.
+// [0,1]^2 is pmf * rows * cols. All-zero tables are uniform as above. Weights are per cell: for
+// a latitude-longitude map the caller folds the cells' sin(theta) solid-angle factor into them.
+// Both classes are immutable after construction; const methods may be called from any thread.
 #pragma once
 
 #include <cstdint>

@@ -9,8 +9,8 @@
 //     (set). The value returned depends only on (seed, stream, index, dimension, kind of call):
 //     never on call history, other streams, threads or time. Copies are independent.
 //   - Values are k * 2^-32 for an integer k in [0, 2^32), so they lie in [0, 1) exactly
-//     (1 - 2^-32 is the largest) and convert to float without reaching 1 only if rounded down:
-//     use std::min(float(u), 0x1.fffffep-1f) when converting.
+//     (1 - 2^-32 is the largest). float(u) rounds to 1.0f for u > 1 - 2^-25, so clamp when
+//     converting: std::min(float(u), 0x1.fffffep-1f).
 //   - Before the first StartSample call a sampler behaves as after StartSample(0).
 //   - Precondition for SobolSampler: index < 2^32 (checked).
 //
@@ -57,30 +57,33 @@ class SobolSampler {
 
   void StartSample(uint64_t index) {
     PB_CHECK_LT(index, uint64_t{1} << 32);
-    index_ = static_cast<uint32_t>(index);
+    reversedIndex_ = ReverseBits32(static_cast<uint32_t>(index));
     dimension_ = 0;
   }
 
+  // Written out from OwenScramble32 to share bit reversals: with r = ReverseBits32(index), the
+  // shuffled index is i' = Rev(LK(r, s0)), dimension 0 of the Sobol point is Rev(i') and its
+  // scramble is Rev(LK(Rev(Rev(i')), s1)) = Rev(LK(i', s1)).
   double Get1D() {
     const uint64_t key = NextDimensionKey();
-    const uint32_t i = OwenScramble32(index_, static_cast<uint32_t>(key));
-    return U32ToUnit(OwenScramble32(SobolSample32(i, 0), static_cast<uint32_t>(key >> 32)));
+    const uint32_t i = ReverseBits32(LaineKarrasPermutation(reversedIndex_, uint32_t(key)));
+    return U32ToUnit(ReverseBits32(LaineKarrasPermutation(i, uint32_t(key >> 32))));
   }
 
   Vec2d Get2D() {
     const uint64_t key = NextDimensionKey();
     const uint64_t key2 = MixBits(key);  // a third independent 32-bit seed
-    const uint32_t i = OwenScramble32(index_, static_cast<uint32_t>(key));
-    return {U32ToUnit(OwenScramble32(SobolSample32(i, 0), static_cast<uint32_t>(key >> 32))),
-            U32ToUnit(OwenScramble32(SobolSample32(i, 1), static_cast<uint32_t>(key2)))};
+    const uint32_t i = ReverseBits32(LaineKarrasPermutation(reversedIndex_, uint32_t(key)));
+    return {U32ToUnit(ReverseBits32(LaineKarrasPermutation(i, uint32_t(key >> 32)))),
+            U32ToUnit(OwenScramble32(SobolSample32(i, 1), uint32_t(key2)))};
   }
 
  private:
   // Hash(seed, stream, d) for the current dimension set d, then advance d.
   uint64_t NextDimensionKey() { return HashCombine(streamHash_, dimension_++); }
 
-  uint64_t streamHash_;  // Hash(seed, stream)
-  uint32_t index_ = 0;
+  uint64_t streamHash_;         // Hash(seed, stream)
+  uint32_t reversedIndex_ = 0;  // ReverseBits32(index)
   uint64_t dimension_ = 0;
 };
 

@@ -37,18 +37,22 @@ constexpr uint32_t ReverseBits32(uint32_t v) {
   return v;
 }
 
-// Nested uniform scramble of the 32-bit fixed-point value v under a 32-bit seed. A bijection of
-// the 2^32 values for every seed. The seed should be well mixed (e.g. bits of Hash(...)).
-constexpr uint32_t OwenScramble32(uint32_t v, uint32_t seed) {
-  // In bit-reversed order the most significant digit becomes bit 0; every step below (xor with an
-  // even multiple, add, multiply by an odd number) changes bit i only as a function of bits < i.
-  v = ReverseBits32(v);
+// The hash-based permutation of Laine-Karras / Burley in the bit-reversed domain (the most
+// significant digit of the fixed-point value is bit 0): every step (xor with an even multiple,
+// add, multiply by an odd number) changes bit i only as a function of bits < i and the seed.
+constexpr uint32_t LaineKarrasPermutation(uint32_t v, uint32_t seed) {
   v ^= v * 0x3d20adeau;
   v += seed;
   v *= (seed >> 16) | 1u;
   v ^= v * 0x05526c56u;
   v ^= v * 0x53a22864u;
-  return ReverseBits32(v);
+  return v;
+}
+
+// Nested uniform scramble of the 32-bit fixed-point value v under a 32-bit seed. A bijection of
+// the 2^32 values for every seed. The seed should be well mixed (e.g. bits of Hash(...)).
+constexpr uint32_t OwenScramble32(uint32_t v, uint32_t seed) {
+  return ReverseBits32(LaineKarrasPermutation(ReverseBits32(v), seed));
 }
 
 namespace detail {
