@@ -1,0 +1,97 @@
+#include "server/checkpoint.h"
+
+#include <gtest/gtest.h>
+
+#include <cstring>
+#include <fstream>
+
+#include "temp_dir.h"
+
+namespace probebake::server {
+namespace {
+
+using probebake::testing::TempDir;
+
+ProbeVolume SmallVolume() {
+  ProbeVolume v;
+  v.grid.origin = {1.5, -2, 0.25};
+  v.grid.spacing = {0.5, 0.5, 1};
+  v.grid.counts[0] = 3;
+  v.grid.counts[1] = 2;
+  v.grid.counts[2] = 2;
+  v.grid.placement = Placement::kNearSurfaces;
+  v.grid.surfaceDistance = 0.75;
+  v.shOrder = 1;
+  const size_t n = size_t(v.grid.ProbeCount());
+  v.active.assign(n, 1);
+  v.active[3] = 0;
+  v.radiance.assign(4, std::vector<float>(3 * n));
+  v.irradiance.assign(4, std::vector<float>(3 * n));
+  for (size_t c = 0; c < 4; ++c)
+    for (size_t i = 0; i < 3 * n; ++i) {
+      v.radiance[c][i] = float(c) * 0.1f + float(i) * 1e-3f;
+      v.irradiance[c][i] = -float(i);
+    }
+  v.radiance[2][5] = std::numeric_limits<float>::denorm_min();  // exact bits, not values
+  v.validity.assign(n, 1.f);
+  v.stdError.assign(n, 0.02f);
+  v.sampleCount.assign(n, 256.f);
+  v.window = "HANNING";
+  v.stats.probes = 11;
+  v.stats.samples = 2816;
+  return v;
+}
+
+TEST(Checkpoint, RoundTripIsBitExact) {
+  TempDir dir;
+  ProbeVolume v = SmallVolume();
+  std::vector<uint8_t> done(v.active.begin(), v.active.end());
+  auto path = dir.path() / "j.ckpt";
+  ASSERT_TRUE(WriteCheckpoint(path, "digest1", v, done).ok());
+  auto read = ReadCheckpoint(path, "digest1");
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->done, done);
+  EXPECT_EQ(read->DoneCount(), int64_t(done.size()) - 1);
+  const ProbeVolume& r = read->volume;
+  EXPECT_EQ(r.grid.origin, v.grid.origin);
+  EXPECT_EQ(r.grid.spacing, v.grid.spacing);
+  EXPECT_EQ(r.grid.ProbeCount(), v.grid.ProbeCount());
+  EXPECT_EQ(r.grid.placement, v.grid.placement);
+  EXPECT_EQ(r.shOrder, 1);
+  EXPECT_EQ(r.active, v.active);
+  ASSERT_EQ(r.radiance.size(), v.radiance.size());
+  for (size_t c = 0; c < v.radiance.size(); ++c) {
+    ASSERT_EQ(r.radiance[c].size(), v.radiance[c].size());
+    EXPECT_EQ(std::memcmp(r.radiance[c].data(), v.radiance[c].data(), 4 * v.radiance[c].size()), 0);
+    EXPECT_EQ(r.irradiance[c], v.irradiance[c]);
+  }
+  EXPECT_EQ(r.window, "HANNING");
+  EXPECT_EQ(r.stats.samples, 2816);
+}
+
+TEST(Checkpoint, RejectsOtherDigestsAndDamage) {
+  TempDir dir;
+  ProbeVolume v = SmallVolume();
+  std::vector<uint8_t> done(v.active.begin(), v.active.end());
+  auto path = dir.path() / "j.ckpt";
+  EXPECT_EQ(ReadCheckpoint(path, "d").status().code(), absl::StatusCode::kNotFound);
+  ASSERT_TRUE(WriteCheckpoint(path, "digest1", v, done).ok());
+  EXPECT_EQ(ReadCheckpoint(path, "digest2").status().code(), absl::StatusCode::kDataLoss);
+  // A flipped byte and a torn (truncated) file are both caught by the checksum.
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  std::string flipped = bytes;
+  flipped[flipped.size() / 2] ^= 0x10;
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << flipped;
+  EXPECT_EQ(ReadCheckpoint(path, "digest1").status().code(), absl::StatusCode::kDataLoss);
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << bytes.substr(0, bytes.size() - 100);
+  EXPECT_EQ(ReadCheckpoint(path, "digest1").status().code(), absl::StatusCode::kDataLoss);
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << "garbage";
+  EXPECT_EQ(ReadCheckpoint(path, "digest1").status().code(), absl::StatusCode::kDataLoss);
+}
+
+}  // namespace
+}  // namespace probebake::server

@@ -1,0 +1,601 @@
+// RPC-level tests of probebake-server in process, over loopback, with the fake baker (so they
+// test the service, not the tracer, and stay fast and deterministic).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <future>
+#include <limits>
+#include <random>
+#include <thread>
+
+#include <grpcpp/generic/generic_stub.h>
+
+#include "probebake/job/digest.h"
+#include "server/checkpoint.h"
+#include "test_server.h"
+
+namespace probebake::testing {
+namespace {
+
+using std::chrono::steady_clock;
+
+grpc::Status CreateStatus(TestServer& s, const v1::CreateBakeJobRequest& request,
+                          v1::BakeJob* job = nullptr,
+                          std::multimap<std::string, std::string>* trailers = nullptr,
+                          bool withToken = true) {
+  v1::BakeJob ignored;
+  auto context = s.Context(withToken);
+  grpc::Status status = s.Jobs()->CreateBakeJob(context.get(), request, job ? job : &ignored);
+  if (trailers) {
+    for (const auto& [k, v] : context->GetServerTrailingMetadata())
+      trailers->emplace(std::string(k.data(), k.size()), std::string(v.data(), v.size()));
+  }
+  return status;
+}
+
+v1::CreateBakeJobRequest Request(const v1::JobSpec& spec, const std::string& requestId = "") {
+  v1::CreateBakeJobRequest request;
+  *request.mutable_job() = spec;
+  request.set_request_id(requestId);
+  return request;
+}
+
+// The volume the fake baker writes for SmallJob(probes, seed), checked value by value.
+void ExpectFakeVolume(const std::string& bytes, int probes, uint64_t seed,
+                      const std::filesystem::path& scratch) {
+  std::filesystem::path file = scratch / "volume.bin";
+  std::ofstream(file, std::ios::binary) << bytes;
+  auto volume = server::ReadCheckpoint(file, kFakeVolumeTag);
+  ASSERT_TRUE(volume.ok()) << volume.status();
+  const ProbeVolume& v = volume->volume;
+  ASSERT_EQ(v.grid.ProbeCount(), probes);
+  ASSERT_EQ(v.radiance.size(), 4u);
+  for (int64_t p = 0; p < probes; ++p)
+    for (int c = 0; c < 4; ++c)
+      for (int ch = 0; ch < 3; ++ch)
+        ASSERT_EQ(v.radiance[size_t(c)][size_t(3 * p + ch)], FakeProbeValue(seed, p, c, ch))
+            << "probe " << p << " coefficient " << c << " channel " << ch;
+}
+
+TEST(Service, CapabilitiesReportTheConfiguredLimits) {
+  TestServerOptions options;
+  options.limits.maxProbes = 1234;
+  options.maxQueuedJobs = 7;
+  TestServer s(options);
+  v1::ServerCapabilities caps;
+  auto context = s.Context();
+  ASSERT_TRUE(s.Capabilities()->GetCapabilities(context.get(), {}, &caps).ok());
+  EXPECT_EQ(caps.job_limits().max_probes(), 1234);
+  EXPECT_EQ(caps.max_queued_jobs(), 7);
+  EXPECT_EQ(caps.digest_function(), "SHA256");
+  EXPECT_EQ(caps.chunk_bytes(), 1 << 20);
+  EXPECT_EQ(caps.max_message_bytes(), 4 << 20);
+  EXPECT_EQ(s.Health(), 1);
+}
+
+TEST(Service, BlobsRoundTripInChunksAndRanges) {
+  TestServer s;
+  std::string data(3 * 1024 * 1024 + 123, '\0');
+  std::mt19937 rng(7);
+  for (char& c : data) c = char(rng());
+  v1::Digest digest = s.Upload(data, 1 << 20);
+  EXPECT_EQ(s.Download(digest), data);
+
+  // FindMissingBlobs answers only for the absent one.
+  v1::FindMissingBlobsRequest find;
+  *find.add_blob_digests() = digest;
+  v1::Digest absent = DigestOf("absent");
+  *find.add_blob_digests() = absent;
+  v1::FindMissingBlobsResponse missing;
+  auto c1 = s.Context();
+  ASSERT_TRUE(s.Content()->FindMissingBlobs(c1.get(), find, &missing).ok());
+  ASSERT_EQ(missing.missing_blob_digests_size(), 1);
+  EXPECT_EQ(missing.missing_blob_digests(0).hash(), absent.hash());
+
+  // A range, and the end of the blob.
+  auto read = [&](int64_t offset, int64_t limit, std::string* out) {
+    v1::ReadBlobRequest request;
+    *request.mutable_digest() = digest;
+    request.set_read_offset(offset);
+    request.set_read_limit(limit);
+    auto context = s.Context();
+    auto stub = s.Content();
+    auto reader = stub->ReadBlob(context.get(), request);
+    v1::ReadBlobResponse chunk;
+    out->clear();
+    while (reader->Read(&chunk)) {
+      EXPECT_LE(chunk.data().size(), size_t(1 << 20));
+      *out += chunk.data();
+    }
+    return reader->Finish();
+  };
+  std::string part;
+  ASSERT_TRUE(read(1000000, 2500000, &part).ok());
+  EXPECT_EQ(part, data.substr(1000000, 2500000));
+  ASSERT_TRUE(read(int64_t(data.size()), 0, &part).ok());
+  EXPECT_TRUE(part.empty());
+  EXPECT_EQ(read(int64_t(data.size()) + 1, 0, &part).error_code(), grpc::StatusCode::OUT_OF_RANGE);
+  EXPECT_EQ(read(-1, 0, &part).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  digest = absent;
+  EXPECT_EQ(read(0, 0, &part).error_code(), grpc::StatusCode::NOT_FOUND);
+}
+
+TEST(Service, WrongDigestIsInvalidArgumentAndUploadsResume) {
+  TestServer s;
+  std::string data(200000, 'x');
+  for (size_t i = 0; i < data.size(); ++i) data[i] = char(i * 31 + 7);
+  v1::Digest digest = DigestOf(data);
+
+  auto write = [&](int64_t offset, const std::string& bytes, bool finish, const v1::Digest& d,
+                   v1::WriteBlobResponse* response) {
+    auto context = s.Context();
+    auto stub = s.Content();
+    auto writer = stub->WriteBlob(context.get(), response);
+    v1::WriteBlobRequest request;
+    *request.mutable_digest() = d;
+    request.set_write_offset(offset);
+    request.set_data(bytes);
+    request.set_finish_write(finish);
+    writer->Write(request);
+    writer->WritesDone();
+    return writer->Finish();
+  };
+  v1::WriteBlobResponse response;
+  // Bytes that do not hash to the digest.
+  v1::Digest wrong = digest;
+  wrong.set_hash(Sha256Hex("something else"));
+  grpc::Status status = write(0, data, true, wrong, &response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(status.error_message().find("hash"), std::string::npos) << status.error_message();
+  // A size that disagrees with the digest.
+  v1::Digest shortDigest = digest;
+  shortDigest.set_size_bytes(10);
+  EXPECT_EQ(write(0, data, true, shortDigest, &response).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+
+  // Half an upload, the stream closed without finishWrite: the server keeps the bytes.
+  status = write(0, data.substr(0, 120000), false, digest, &response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT) << status.error_message();
+  v1::QueryWriteStatusRequest query;
+  *query.mutable_digest() = digest;
+  v1::QueryWriteStatusResponse progress;
+  auto c = s.Context();
+  ASSERT_TRUE(s.Content()->QueryWriteStatus(c.get(), query, &progress).ok());
+  EXPECT_EQ(progress.committed_size(), 120000);
+  EXPECT_FALSE(progress.complete());
+  // Resuming at the wrong offset is refused; at the committed size it completes.
+  EXPECT_EQ(write(0, data, true, digest, &response).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  ASSERT_TRUE(write(120000, data.substr(120000), true, digest, &response).ok());
+  EXPECT_EQ(response.committed_size(), int64_t(data.size()));
+  auto c2 = s.Context();
+  ASSERT_TRUE(s.Content()->QueryWriteStatus(c2.get(), query, &progress).ok());
+  EXPECT_TRUE(progress.complete());
+  EXPECT_EQ(s.Download(digest), data);
+  // Writing it again is answered at once.
+  ASSERT_TRUE(write(0, "", false, digest, &response).ok());
+  EXPECT_TRUE(response.already_present());
+  EXPECT_EQ(s.Health(), 1);
+}
+
+TEST(Service, SubmitWatchFetch) {
+  TestServer s;
+  const int probes = 24;
+  v1::BakeJob created = s.Create(SmallJob(probes, 5));
+  EXPECT_EQ(created.state(), v1::BakeJob::QUEUED);
+  EXPECT_EQ(created.name().rfind("bakeJobs/", 0), 0u);
+  EXPECT_EQ(created.job_digest().size(), 64u);
+  std::vector<v1::BakeJob> messages;
+  v1::BakeJob final = s.WaitFinal(created.name(), &messages);
+  ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
+  EXPECT_FALSE(final.result().cached_result());
+  EXPECT_EQ(final.result().source_job(), created.name());
+  EXPECT_EQ(final.attempts(), 1);
+  EXPECT_EQ(final.progress().probes_done(), probes);
+  EXPECT_TRUE(final.has_end_time());
+  // States only move forward; progress never goes back.
+  int64_t lastDone = 0;
+  for (size_t i = 1; i < messages.size(); ++i) {
+    EXPECT_GE(int(messages[i].state()), int(messages[i - 1].state()));
+    EXPECT_GE(messages[i].progress().probes_done(), lastDone);
+    lastDone = messages[i].progress().probes_done();
+  }
+  TempDir scratch;
+  ExpectFakeVolume(s.Download(final.result().volume()), probes, 5, scratch.path());
+  // Get (FULL) carries the spec; BASIC does not.
+  v1::BakeJob full = s.Get(created.name());
+  EXPECT_EQ(full.job().grid().counts(0), probes);
+  EXPECT_EQ(full.state(), v1::BakeJob::SUCCEEDED);
+}
+
+TEST(Service, WatchUpdatesAreRateLimited) {
+  TestServerOptions options;
+  options.probeDelay = std::chrono::milliseconds(10);  // 100 probes: ~1 s of baking
+  TestServer s(options);
+  v1::BakeJob created = s.Create(SmallJob(100));
+  auto start = steady_clock::now();
+  std::vector<v1::BakeJob> messages;
+  v1::BakeJob final = s.WaitFinal(created.name(), &messages);
+  double seconds = SecondsSince(start);
+  ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED);
+  // Progress comes every 0.25 s (BakeOptions.progressIntervalSeconds) plus the state changes
+  // (queued, running, succeeded) and the final report: at most 4/s + 4, and at least one
+  // progress message mid-bake (a watch that only saw the end would not be a watch).
+  EXPECT_LE(double(messages.size()), 4.0 * seconds + 4.0 + 1.0)
+      << messages.size() << " messages in " << seconds << " s";
+  int midBake = 0;
+  for (const v1::BakeJob& m : messages)
+    midBake += m.state() == v1::BakeJob::RUNNING && m.progress().probes_done() > 0 &&
+               m.progress().probes_done() < 100;
+  EXPECT_GE(midBake, 1);
+}
+
+TEST(Service, RequestIdIsIdempotent) {
+  TestServer s;
+  v1::BakeJob first = s.Create(SmallJob(4), "req-1");
+  v1::BakeJob again = s.Create(SmallJob(4), "req-1");
+  EXPECT_EQ(again.name(), first.name());
+  // Even with a different spec, the id names the first job.
+  v1::BakeJob other = s.Create(SmallJob(5), "req-1");
+  EXPECT_EQ(other.name(), first.name());
+  v1::ListBakeJobsResponse list;
+  auto c = s.Context();
+  ASSERT_TRUE(s.Jobs()->ListBakeJobs(c.get(), {}, &list).ok());
+  EXPECT_EQ(list.bake_jobs_size(), 1);
+  s.WaitFinal(first.name());
+  EXPECT_EQ(s.bakeStats().bakes.load(), 1);
+}
+
+TEST(Service, ResultCacheHitSkipCacheAndMissingVolume) {
+  TestServer s;
+  v1::BakeJob first = s.Create(SmallJob(6, 3));
+  v1::BakeJob done = s.WaitFinal(first.name());
+  ASSERT_EQ(done.state(), v1::BakeJob::SUCCEEDED);
+
+  auto start = steady_clock::now();
+  v1::BakeJob cached = s.Create(SmallJob(6, 3));
+  EXPECT_LT(SecondsSince(start), 1.0);
+  EXPECT_EQ(cached.state(), v1::BakeJob::SUCCEEDED);
+  EXPECT_TRUE(cached.result().cached_result());
+  EXPECT_EQ(cached.result().source_job(), first.name());
+  EXPECT_EQ(cached.result().volume().hash(), done.result().volume().hash());
+  EXPECT_NE(cached.name(), first.name());
+  EXPECT_EQ(s.bakeStats().bakes.load(), 1);
+
+  // Another seed is another job digest: no hit.
+  EXPECT_EQ(s.Create(SmallJob(6, 4)).state(), v1::BakeJob::QUEUED);
+  // skipCache bakes again, with the same bits.
+  v1::BakeJob forced = s.Create(SmallJob(6, 3), "", /*skipCache=*/true);
+  EXPECT_EQ(forced.state(), v1::BakeJob::QUEUED);
+  v1::BakeJob rebaked = s.WaitFinal(forced.name());
+  EXPECT_EQ(rebaked.result().volume().hash(), done.result().volume().hash());
+
+  // A cache entry whose volume blob is gone is not served.
+  std::string hash = done.result().volume().hash();
+  std::filesystem::remove(s.dataDir() / "blobs" / hash.substr(0, 2) / hash);
+  v1::BakeJob afterLoss = s.Create(SmallJob(6, 3));
+  EXPECT_EQ(afterLoss.state(), v1::BakeJob::QUEUED);
+  EXPECT_EQ(s.WaitFinal(afterLoss.name()).state(), v1::BakeJob::SUCCEEDED);
+}
+
+TEST(Service, CancelRunningJobReachesTheBakerQuickly) {
+  TestServerOptions options;
+  options.probeDelay = std::chrono::milliseconds(20);
+  TestServer s(options);
+  v1::BakeJob created = s.Create(SmallJob(500));
+  // Wait until it runs and has baked some probes.
+  v1::BakeJob now;
+  for (int i = 0; i < 200; ++i) {
+    now = s.Get(created.name());
+    if (now.state() == v1::BakeJob::RUNNING && now.progress().probes_done() > 0) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_EQ(now.state(), v1::BakeJob::RUNNING);
+  auto start = steady_clock::now();
+  v1::CancelBakeJobRequest cancel;
+  cancel.set_name(created.name());
+  v1::BakeJob answer;
+  auto c = s.Context();
+  ASSERT_TRUE(s.Jobs()->CancelBakeJob(c.get(), cancel, &answer).ok());
+  EXPECT_TRUE(answer.cancel_requested());
+  v1::BakeJob final = s.WaitFinal(created.name());
+  double seconds = SecondsSince(start);
+  EXPECT_EQ(final.state(), v1::BakeJob::CANCELLED);
+  EXPECT_EQ(final.error().code(), int(grpc::StatusCode::CANCELLED));
+  // The baker checks the flag between probes (20 ms): well under half a second end to end.
+  EXPECT_LT(seconds, 0.5);
+  EXPECT_LT(final.progress().probes_done(), 500);
+  // Cancelling a final job changes nothing.
+  auto c2 = s.Context();
+  ASSERT_TRUE(s.Jobs()->CancelBakeJob(c2.get(), cancel, &answer).ok());
+  EXPECT_EQ(answer.state(), v1::BakeJob::CANCELLED);
+}
+
+TEST(Service, QueueBoundCancelQueuedAndDelete) {
+  TestServerOptions options;
+  options.probeDelay = std::chrono::milliseconds(20);
+  options.maxQueuedJobs = 1;
+  TestServer s(options);
+  v1::BakeJob a = s.Create(SmallJob(200, 1));
+  for (int i = 0; i < 100 && s.Get(a.name()).state() != v1::BakeJob::RUNNING; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  v1::BakeJob b = s.Create(SmallJob(10, 2));
+  EXPECT_EQ(b.state(), v1::BakeJob::QUEUED);
+  // The queue holds one job: the next is refused with a retry delay.
+  std::multimap<std::string, std::string> trailers;
+  grpc::Status full = CreateStatus(s, Request(SmallJob(10, 3)), nullptr, &trailers);
+  EXPECT_EQ(full.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED) << full.error_message();
+  auto retry = trailers.find("retry-after-ms");
+  ASSERT_NE(retry, trailers.end());
+  int retryMs = std::stoi(retry->second);
+  EXPECT_GE(retryMs, 1000);
+  EXPECT_LE(retryMs, 60000);
+
+  // Delete refuses a running job; a queued one is cancelled at once.
+  v1::DeleteBakeJobRequest del;
+  del.set_name(a.name());
+  google::protobuf::Empty empty;
+  auto c1 = s.Context();
+  EXPECT_EQ(s.Jobs()->DeleteBakeJob(c1.get(), del, &empty).error_code(),
+            grpc::StatusCode::FAILED_PRECONDITION);
+  v1::CancelBakeJobRequest cancel;
+  cancel.set_name(b.name());
+  v1::BakeJob cancelled;
+  auto c2 = s.Context();
+  ASSERT_TRUE(s.Jobs()->CancelBakeJob(c2.get(), cancel, &cancelled).ok());
+  EXPECT_EQ(cancelled.state(), v1::BakeJob::CANCELLED);
+  // Now there is room again.
+  v1::BakeJob c = s.Create(SmallJob(10, 3));
+  EXPECT_EQ(c.state(), v1::BakeJob::QUEUED);
+  // Delete a final job: gone afterwards.
+  del.set_name(b.name());
+  auto c3 = s.Context();
+  ASSERT_TRUE(s.Jobs()->DeleteBakeJob(c3.get(), del, &empty).ok());
+  v1::GetBakeJobRequest get;
+  get.set_name(b.name());
+  v1::BakeJob gone;
+  auto c4 = s.Context();
+  EXPECT_EQ(s.Jobs()->GetBakeJob(c4.get(), get, &gone).error_code(), grpc::StatusCode::NOT_FOUND);
+  cancel.set_name(a.name());
+  auto c5 = s.Context();
+  ASSERT_TRUE(s.Jobs()->CancelBakeJob(c5.get(), cancel, &cancelled).ok());
+  EXPECT_EQ(s.WaitFinal(c.name()).state(), v1::BakeJob::SUCCEEDED);
+}
+
+TEST(Service, BadRequestsGetTheRightStatusAndTheServerStaysHealthy) {
+  TestServerOptions options;
+  options.limits.maxProbes = 1000;
+  TestServer s(options);
+  auto expectStatus = [&](const v1::JobSpec& spec, grpc::StatusCode code,
+                          const std::string& messagePart) {
+    grpc::Status status = CreateStatus(s, Request(spec));
+    EXPECT_EQ(status.error_code(), code) << status.error_message();
+    EXPECT_NE(status.error_message().find(messagePart), std::string::npos)
+        << "expected \"" << messagePart << "\" in: " << status.error_message();
+  };
+  // A client path: the server never reads it.
+  v1::JobSpec withFile = SmallJob(4);
+  v1::Mesh* mesh = withFile.mutable_scene()->mutable_meshes(0);
+  mesh->clear_positions();
+  mesh->clear_indices();
+  mesh->set_file("/etc/passwd");
+  expectStatus(withFile, grpc::StatusCode::INVALID_ARGUMENT,
+               "scene.meshes[0].file: the server does not read client paths; upload the file and "
+               "reference it by blob");
+  // A blob the server does not have.
+  v1::JobSpec withBlob = SmallJob(4);
+  mesh = withBlob.mutable_scene()->mutable_meshes(0);
+  mesh->clear_positions();
+  mesh->clear_indices();
+  *mesh->mutable_blob() = DigestOf("v 0 0 0\n");
+  mesh->set_format("obj");
+  expectStatus(withBlob, grpc::StatusCode::FAILED_PRECONDITION,
+               "scene.meshes[0].blob sha256:" + DigestOf("v 0 0 0\n").hash());
+  // NaN.
+  v1::JobSpec nan = SmallJob(4);
+  nan.mutable_scene()->mutable_materials(0)->set_albedo(1, std::nan(""));
+  expectStatus(nan, grpc::StatusCode::INVALID_ARGUMENT, "scene.materials[0].albedo[1]");
+  // Past the probe limit.
+  v1::JobSpec huge = SmallJob(4);
+  huge.mutable_grid()->set_counts(0, 100000);
+  huge.mutable_grid()->set_max(1, 10);
+  huge.mutable_grid()->set_counts(1, 100000);
+  expectStatus(huge, grpc::StatusCode::INVALID_ARGUMENT, "grid");
+  // No job at all, a bad request id.
+  expectStatus(v1::JobSpec(), grpc::StatusCode::INVALID_ARGUMENT, "");
+  v1::CreateBakeJobRequest noJob;
+  EXPECT_EQ(CreateStatus(s, noJob).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(CreateStatus(s, Request(SmallJob(4), std::string(200, 'r'))).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  // Names, pages.
+  for (std::string name : {"", "bakeJobs/", "bakeJobs/../../etc", "jobs/0123456789abcdef",
+                           "bakeJobs/0123456789ABCDEF"}) {
+    v1::GetBakeJobRequest get;
+    get.set_name(name);
+    v1::BakeJob job;
+    auto c = s.Context();
+    EXPECT_EQ(s.Jobs()->GetBakeJob(c.get(), get, &job).error_code(),
+              grpc::StatusCode::INVALID_ARGUMENT)
+        << name;
+  }
+  v1::GetBakeJobRequest get;
+  get.set_name("bakeJobs/0123456789abcdef");
+  v1::BakeJob job;
+  auto c1 = s.Context();
+  EXPECT_EQ(s.Jobs()->GetBakeJob(c1.get(), get, &job).error_code(), grpc::StatusCode::NOT_FOUND);
+  v1::ListBakeJobsRequest list;
+  list.set_page_token("garbage");
+  v1::ListBakeJobsResponse page;
+  auto c2 = s.Context();
+  EXPECT_EQ(s.Jobs()->ListBakeJobs(c2.get(), list, &page).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  list.set_page_token("");
+  list.set_page_size(-1);
+  auto c3 = s.Context();
+  EXPECT_EQ(s.Jobs()->ListBakeJobs(c3.get(), list, &page).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  // Watching an unknown job: NOT_FOUND (resubmit).
+  v1::WatchBakeJobRequest watch;
+  watch.set_name("bakeJobs/0123456789abcdef");
+  auto c4 = s.Context();
+  auto stub = s.Jobs();
+  auto reader = stub->WatchBakeJob(c4.get(), watch);
+  v1::BakeJob ignored;
+  EXPECT_FALSE(reader->Read(&ignored));
+  EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::NOT_FOUND);
+  // Nothing was accepted, the server is healthy and still bakes.
+  v1::ListBakeJobsResponse all;
+  auto c5 = s.Context();
+  ASSERT_TRUE(s.Jobs()->ListBakeJobs(c5.get(), {}, &all).ok());
+  EXPECT_EQ(all.bake_jobs_size(), 0);
+  EXPECT_EQ(s.Health(), 1);
+  EXPECT_EQ(s.WaitFinal(s.Create(SmallJob(3)).name()).state(), v1::BakeJob::SUCCEEDED);
+}
+
+TEST(Service, TokenIsRequiredOnEveryCallButHealth) {
+  TestServerOptions options;
+  options.token = "s3cret-token";
+  TestServer s(options);
+  EXPECT_EQ(s.Health(), 1);  // no token needed
+  auto call = [&](const std::string* authorization) {
+    grpc::ClientContext context;
+    if (authorization) context.AddMetadata("authorization", *authorization);
+    v1::ServerCapabilities caps;
+    return s.Capabilities()->GetCapabilities(&context, {}, &caps);
+  };
+  EXPECT_EQ(call(nullptr).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  std::string wrong = "Bearer s3cret-tokex", scheme = "Basic s3cret-token",
+              good = "Bearer s3cret-token", prefix = "Bearer s3cret";
+  EXPECT_EQ(call(&wrong).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_EQ(call(&scheme).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_EQ(call(&prefix).error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  EXPECT_TRUE(call(&good).ok());
+  // Streams and job calls too.
+  EXPECT_EQ(
+      CreateStatus(s, Request(SmallJob(2)), nullptr, nullptr, /*withToken=*/false).error_code(),
+      grpc::StatusCode::UNAUTHENTICATED);
+  {
+    grpc::ClientContext context;
+    v1::ReadBlobRequest request;
+    *request.mutable_digest() = DigestOf("x");
+    auto stub = s.Content();
+    auto reader = stub->ReadBlob(&context, request);
+    v1::ReadBlobResponse chunk;
+    EXPECT_FALSE(reader->Read(&chunk));
+    EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  }
+  {
+    grpc::ClientContext context;
+    v1::WriteBlobResponse response;
+    auto stub = s.Content();
+    auto writer = stub->WriteBlob(&context, &response);
+    v1::WriteBlobRequest request;
+    *request.mutable_digest() = DigestOf("x");
+    request.set_data("x");
+    request.set_finish_write(true);
+    writer->Write(request);
+    writer->WritesDone();
+    EXPECT_EQ(writer->Finish().error_code(), grpc::StatusCode::UNAUTHENTICATED);
+  }
+  // With the token everything works.
+  v1::BakeJob job = s.Create(SmallJob(2));
+  EXPECT_EQ(s.WaitFinal(job.name()).state(), v1::BakeJob::SUCCEEDED);
+}
+
+TEST(Service, ListPagesThroughEveryJobOnce) {
+  TestServer s;
+  std::vector<std::string> names;
+  for (int i = 0; i < 7; ++i) names.push_back(s.Create(SmallJob(2, uint64_t(100 + i))).name());
+  std::vector<std::string> listed;
+  v1::ListBakeJobsRequest request;
+  request.set_page_size(3);
+  int pages = 0;
+  while (true) {
+    v1::ListBakeJobsResponse page;
+    auto c = s.Context();
+    ASSERT_TRUE(s.Jobs()->ListBakeJobs(c.get(), request, &page).ok());
+    ++pages;
+    EXPECT_LE(page.bake_jobs_size(), 3);
+    for (const v1::BakeJob& job : page.bake_jobs()) {
+      listed.push_back(job.name());
+      EXPECT_FALSE(job.has_job());  // BASIC view by default
+    }
+    if (page.next_page_token().empty()) break;
+    request.set_page_token(page.next_page_token());
+  }
+  EXPECT_EQ(pages, 3);
+  EXPECT_EQ(listed, names);
+}
+
+TEST(Service, GracefulRestartResumesFromTheCheckpointWithTheSameBits) {
+  TestServerOptions options;
+  options.probeDelay = std::chrono::milliseconds(5);
+  options.checkpointIntervalSeconds = 0.05;
+  TempDir dir;
+  TestServer s(options, dir.path() / "data");
+  const int probes = 200;
+  v1::BakeJob created = s.Create(SmallJob(probes, 9));
+  v1::BakeJob now;
+  for (int i = 0; i < 400; ++i) {
+    now = s.Get(created.name());
+    if (now.progress().probes_done() >= 40) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_EQ(now.state(), v1::BakeJob::RUNNING);
+  auto start = steady_clock::now();
+  s.Stop();  // SIGTERM path: cancel, checkpoint kept, requeued
+  double stopSeconds = SecondsSince(start);
+  EXPECT_LT(stopSeconds, 3.0);
+  s.Restart();
+  v1::BakeJob final = s.WaitFinal(created.name());
+  ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
+  EXPECT_EQ(final.attempts(), 2);
+  EXPECT_EQ(s.bakeStats().resumed.load(), 1);
+  // Fewer probes baked after the restart than in all: the checkpoint was used.
+  EXPECT_LT(s.bakeStats().probesBaked.load(), probes);
+  EXPECT_LE(s.bakeStats().maxActivePerJob, 1);
+  TempDir scratch;
+  ExpectFakeVolume(s.Download(final.result().volume()), probes, 9, scratch.path());
+}
+
+TEST(Service, GarbageRequestsDoNotHurtTheServer) {
+  TestServer s;
+  grpc::GenericStub stub(s.channel());
+  std::mt19937 rng(12345);
+  const char* methods[] = {"/probebake.v1.BakeJobs/CreateBakeJob",
+                           "/probebake.v1.BakeJobs/GetBakeJob",
+                           "/probebake.v1.BakeJobs/ListBakeJobs",
+                           "/probebake.v1.ContentStorage/FindMissingBlobs",
+                           "/probebake.v1.ContentStorage/QueryWriteStatus",
+                           "/probebake.v1.Capabilities/GetCapabilities"};
+  // Random bytes, and a valid job with random byte flips (which often still parse).
+  std::string valid = Request(SmallJob(3)).SerializeAsString();
+  int calls = 0;
+  for (int i = 0; i < 300; ++i) {
+    std::string payload;
+    if (i % 2 == 0) {
+      payload.resize(rng() % 200);
+      for (char& c : payload) c = char(rng());
+    } else {
+      payload = valid;
+      for (int k = 0; k < 3; ++k) payload[rng() % payload.size()] = char(rng());
+    }
+    grpc::Slice slice(payload);
+    grpc::ByteBuffer request(&slice, 1), response;
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(10));
+    std::promise<grpc::Status> done;
+    stub.UnaryCall(&context, methods[i % std::size(methods)], grpc::StubOptions(), &request,
+                   &response, [&](grpc::Status st) { done.set_value(st); });
+    grpc::Status status = done.get_future().get();
+    EXPECT_NE(status.error_code(), grpc::StatusCode::UNAVAILABLE) << "server died at call " << i;
+    if (status.error_code() == grpc::StatusCode::UNAVAILABLE) break;
+    ++calls;
+  }
+  EXPECT_EQ(calls, 300);
+  EXPECT_EQ(s.Health(), 1);
+}
+
+}  // namespace
+}  // namespace probebake::testing
