@@ -1,0 +1,99 @@
+// The probe volume file (SPEC 5): one OpenVDB file per bake, readable by stock OpenVDB tools and
+// by pyopenvdb. This header exposes no OpenVDB type; OpenVDB lives in two source files.
+//
+// Layout written by WriteProbeVolume (format 1):
+// - Grids, in this order: radiance_sh_00 ... radiance_sh_NN (NN = (L+1)^2 - 1, two digits, so
+//   L <= 9), Vec3SGrid holding the RGB of SH coefficient i; irradiance_sh_00 ... likewise when
+//   ProbeVolume::irradiance is non-empty; validity, std_error and sample_count, FloatGrid. No
+//   other grids. Values are stored as 32-bit floats exactly as given (never as half), background
+//   0, grid class "unknown", Vec3 grids with vector type "invariant" (RGB does not transform).
+//   Each SH grid also carries int32 metadata sh_index, sh_l and sh_m.
+// - One transform shared by every grid: a linear scale-translate map with voxel size = probe
+//   spacing per axis, so index (i, j, k) maps to world origin + spacing * (i, j, k): integer
+//   index coordinates are voxel centres, and voxel centres are probes.
+// - Active voxels are exactly the baked probes (ProbeVolume::active), identical in every grid;
+//   inactive voxels hold the background 0.
+// - Compression: OpenVDB's default for files, blosc + active-mask compression (this OpenVDB build
+//   has blosc; zip would be its fallback). Lossless.
+// - File metadata (name: OpenVDB metadata type, all readable by pyopenvdb):
+//     probebake_format: int32 (1)          sh_order: int32 (L)
+//     sh_basis: string ("real-orthonormal-condon-shortley-zpolar")
+//     sh_window: string (ProbeVolume::window, e.g. "NONE")
+//     quantity: string ("radiance")        has_irradiance: bool
+//     color_space: string ("linear-rec709")
+//     samples_per_probe: int64             max_depth: int32
+//     seed: int64 (the uint64 seed's bits: seeds >= 2^63 read as seed - 2^64 in Python;
+//           ReadProbeVolume restores the uint64 exactly)
+//     scene_digest: string                 settings: string (JSON, VolumeMetadata::settingsJson)
+//     generator: string ("probebake <kVersion>")
+//     stats: string (JSON object: wallSeconds (number), threads, probes, samples, rays,
+//            invalidProbes (integers))
+//   plus extra keys so a reader can rebuild the ProbeGrid without guessing:
+//     grid_counts: vec3i (probes per axis)   grid_min: vec3d   grid_spacing: vec3d
+//     grid_placement: string ("ALL", "OUTSIDE_GEOMETRY" or "NEAR_SURFACES")
+//     grid_surface_distance: double
+// - Atomic: written to a hidden temporary file in the destination's directory, flushed and
+//   fsynced, renamed over `path`, then the directory is fsynced. A failed write leaves `path` as it
+//   was (absent or the previous file) and no temporary file.
+// - Bytes: identical to what openvdb::io::File::write produces for the same grids (written grid
+//   by grid through OpenVDB's own archive writer), except the header's random 16-byte UUID, which
+//   OpenVDB draws anew for every file.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+
+#include "probebake/bake/probe_volume.h"
+#include "probebake/base/status.h"
+
+namespace probebake {
+
+inline constexpr int kProbeVolumeFormat = 1;
+// Largest SH order whose coefficient indices fit the two-digit grid names.
+inline constexpr int kMaxVolumeShOrder = 9;
+
+inline constexpr const char* kValidityGridName = "validity";
+inline constexpr const char* kStdErrorGridName = "std_error";
+inline constexpr const char* kSampleCountGridName = "sample_count";
+
+// "radiance_sh_07" for coefficient 7; coefficient in [0, 99].
+std::string RadianceGridName(int coefficient);
+// "irradiance_sh_07" for coefficient 7; coefficient in [0, 99].
+std::string IrradianceGridName(int coefficient);
+
+// Writes `volume` to `path` as described above. Errors: INVALID_ARGUMENT when the volume is
+// inconsistent (plane sizes, order > kMaxVolumeShOrder, non-positive spacing), naming the field;
+// NOT_FOUND / PERMISSION_DENIED / RESOURCE_EXHAUSTED (disk full) / INTERNAL for I/O failures,
+// with `path` in the message. Thread safe for distinct paths.
+//
+// Memory: grids are built, written and freed one at a time, so the extra memory while writing is
+// about one grid (one coefficient plane), not a copy of the volume.
+absl::Status WriteProbeVolume(const std::string& path, const ProbeVolume& volume,
+                              const VolumeMetadata& meta);
+// As above, and releases each coefficient plane of `volume` (radiance, irradiance, validity,
+// stdError, sampleCount) as soon as its grid is built, so memory falls while writing. On return,
+// successful or not, those vectors are empty (radiance and irradiance hold no planes); grid,
+// shOrder, active, window and stats are kept.
+absl::Status WriteProbeVolume(const std::string& path, ProbeVolume&& volume,
+                              const VolumeMetadata& meta);
+
+// A probe volume file read back.
+struct ProbeVolumeFile {
+  ProbeVolume volume;
+  VolumeMetadata meta;
+  // Every file-level metadata entry, its value as text: strings as they are, integers in decimal,
+  // bools as "true"/"false", floating point with round-trip precision, vectors as "(x, y, z)".
+  std::map<std::string, std::string> rawMetadata;
+};
+
+// Reads a file written by WriteProbeVolume, bit for bit: every float, the active mask, the grid
+// (origin and spacing from the transform, counts from grid_counts, or from the active bounding
+// box when that key is absent) and the metadata. Validates the format: missing, unexpected or
+// mistyped grids, a transform that is not an axis-aligned positive scale + translation or differs
+// between grids, active voxels that differ between grids or lie outside the grid, metadata of the
+// wrong type. Errors are INVALID_ARGUMENT "<path>: <grid or key>: <reason>" (NOT_FOUND when the
+// file does not exist).
+absl::StatusOr<ProbeVolumeFile> ReadProbeVolume(const std::string& path);
+
+}  // namespace probebake

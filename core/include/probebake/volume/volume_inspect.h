@@ -1,0 +1,61 @@
+// `probebake inspect`: what a probe volume file holds, for people (FormatVolumeReport) and for
+// scripts (VolumeReportJson). Works on any OpenVDB file; probebake-specific figures (probe count,
+// invalid probes) come from the validity grid when there is one.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "probebake/base/status.h"
+
+namespace probebake {
+
+struct MetadataEntry {
+  std::string name;
+  std::string type;   // OpenVDB's type name: "int32", "int64", "bool", "string", "vec3i", ...
+  std::string value;  // as text (see ProbeVolumeFile::rawMetadata)
+};
+
+struct GridReport {
+  std::string name;
+  std::string type;       // OpenVDB's grid type, e.g. "Tree_float_5_4_3", "Tree_vec3s_5_4_3"
+  std::string valueType;  // "float", "vec3s", ...
+  int64_t activeVoxels = 0;
+  // Index-space bounding box of the active voxels, inclusive; meaningless when activeVoxels = 0.
+  int bboxMin[3] = {0, 0, 0};
+  int bboxMax[3] = {0, 0, 0};
+  // Per channel (1 for float grids, 3 for vec3s grids, 0 for other value types) over the active
+  // voxels: minimum, maximum and mean, accumulated in double.
+  int channels = 0;
+  double min[3] = {0, 0, 0};
+  double max[3] = {0, 0, 0};
+  double mean[3] = {0, 0, 0};
+};
+
+struct VolumeReport {
+  std::string path;
+  int64_t fileBytes = 0;
+  std::vector<MetadataEntry> metadata;  // sorted by name
+  std::vector<GridReport> grids;        // in file order
+  // Active voxels of the validity grid (of the first grid when there is none): the baked probes.
+  int64_t probes = 0;
+  // Active voxels of the validity grid whose value is below 0.5; -1 without a validity grid.
+  int64_t invalidProbes = -1;
+};
+
+// Reads `path` (every grid, one at a time) and gathers the report. NOT_FOUND when the file does
+// not exist, INVALID_ARGUMENT naming the path when it is not a readable OpenVDB file.
+absl::StatusOr<VolumeReport> InspectProbeVolume(const std::string& path);
+
+// Multi-line text for a terminal: metadata, probe counts, then one line per grid.
+std::string FormatVolumeReport(const VolumeReport& report);
+
+// One JSON object: {"path", "fileBytes", "probes", "invalidProbes", "metadata": {name: value},
+// "grids": [{"name", "type", "valueType", "activeVoxels", "bboxMin", "bboxMax", "min", "max",
+// "mean"}]}. Metadata values are JSON numbers for int/float types, booleans for bool, arrays for
+// vectors, strings otherwise; string values that hold valid JSON (settings, stats) are embedded as
+// JSON. Statistics of 1-channel grids are still arrays (of one number).
+std::string VolumeReportJson(const VolumeReport& report);
+
+}  // namespace probebake

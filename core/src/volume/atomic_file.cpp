@@ -1,0 +1,110 @@
+#include "atomic_file.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <utility>
+
+namespace probebake::volume_internal {
+namespace {
+
+struct PathParts {
+  std::string dir;   // "." when the path has no directory part
+  std::string name;  // the file name
+};
+
+PathParts SplitPath(const std::string& path) {
+  const size_t slash = path.find_last_of('/');
+  if (slash == std::string::npos) return {std::string("."), path};
+  return {slash == 0 ? std::string("/") : path.substr(0, slash), path.substr(slash + 1)};
+}
+
+// Distinguishes temporary files of concurrent writers in one process.
+std::atomic<uint64_t> g_tempCounter{0};
+
+}  // namespace
+
+absl::Status IoError(int error_number, const std::string& path, const std::string& what) {
+  std::string message = path + ": " + what + ": " + std::strerror(error_number);
+  absl::StatusCode code = absl::ErrnoToStatusCode(error_number);
+  // A full disk or a file-size limit is a resource problem, whatever errno's default mapping.
+  if (error_number == ENOSPC || error_number == EDQUOT || error_number == EFBIG) {
+    code = absl::StatusCode::kResourceExhausted;
+  }
+  if (code == absl::StatusCode::kOk || code == absl::StatusCode::kUnknown) {
+    code = absl::StatusCode::kInternal;
+  }
+  return absl::Status(code, message);
+}
+
+absl::StatusOr<AtomicFile> AtomicFile::Create(const std::string& path) {
+  if (path.empty() || path.back() == '/') {
+    return absl::InvalidArgumentError("'" + path + "': not a file path");
+  }
+  const auto [dir, name] = SplitPath(path);
+  for (int attempt = 0; attempt < 100; ++attempt) {
+    const uint64_t n = g_tempCounter.fetch_add(1, std::memory_order_relaxed);
+    std::string temp = (dir == "/" ? std::string() : dir) + "/." + name + "." +
+                       std::to_string(::getpid()) + "." + std::to_string(n) + ".tmp";
+    const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd >= 0) return AtomicFile(path, std::move(temp), fd);
+    if (errno != EEXIST) return IoError(errno, path, "cannot create a temporary file in " + dir);
+  }
+  return absl::InternalError(path + ": cannot find a free temporary file name in " + dir);
+}
+
+AtomicFile::AtomicFile(AtomicFile&& other) noexcept
+    : path_(std::move(other.path_)),
+      tempPath_(std::move(other.tempPath_)),
+      fd_(std::exchange(other.fd_, -1)),
+      done_(std::exchange(other.done_, true)) {}
+
+AtomicFile::~AtomicFile() {
+  Abort();
+}
+
+void AtomicFile::Abort() {
+  if (done_) return;
+  done_ = true;
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
+  ::unlink(tempPath_.c_str());
+}
+
+absl::Status AtomicFile::Commit() {
+  if (done_) return absl::FailedPreconditionError(path_ + ": file already committed or aborted");
+  // fsync through our descriptor flushes the inode, whichever descriptor wrote the data.
+  if (::fsync(fd_) != 0) {
+    const int e = errno;
+    Abort();
+    return IoError(e, path_, "fsync of " + tempPath_ + " failed");
+  }
+  const int closed = ::close(fd_);
+  fd_ = -1;
+  if (closed != 0) {
+    const int e = errno;
+    Abort();
+    return IoError(e, path_, "close of " + tempPath_ + " failed");
+  }
+  if (::rename(tempPath_.c_str(), path_.c_str()) != 0) {
+    const int e = errno;
+    Abort();
+    return IoError(e, path_, "cannot rename " + tempPath_ + " to it");
+  }
+  done_ = true;
+  // The rename is durable once the directory entry is: fsync the directory.
+  const std::string dir = SplitPath(path_).dir;
+  const int dirFd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dirFd < 0) return IoError(errno, path_, "cannot open directory " + dir + " to fsync it");
+  const int synced = ::fsync(dirFd);
+  const int e = errno;
+  ::close(dirFd);
+  if (synced != 0) return IoError(e, path_, "fsync of directory " + dir + " failed");
+  return absl::OkStatus();
+}
+
+}  // namespace probebake::volume_internal

@@ -1,0 +1,156 @@
+#include "vdb_format.h"
+
+#include <cmath>
+#include <cstdint>
+
+#include "json_lite.h"
+#include "probebake/base/check.h"
+#include "probebake/volume/vdb_io.h"
+
+namespace probebake::volume_internal {
+
+const char* PlacementName(Placement placement) {
+  switch (placement) {
+    case Placement::kAll:
+      return "ALL";
+    case Placement::kOutsideGeometry:
+      return "OUTSIDE_GEOMETRY";
+    case Placement::kNearSurfaces:
+      return "NEAR_SURFACES";
+  }
+  return "ALL";
+}
+
+bool ParsePlacement(const std::string& name, Placement* placement) {
+  for (Placement p : {Placement::kAll, Placement::kOutsideGeometry, Placement::kNearSurfaces}) {
+    if (name == PlacementName(p)) {
+      *placement = p;
+      return true;
+    }
+  }
+  return false;
+}
+
+std::string StatsToJson(const BakeStats& stats) {
+  return "{\"wallSeconds\":" + JsonNumber(stats.wallSeconds) +
+         ",\"threads\":" + std::to_string(stats.threads) +
+         ",\"probes\":" + std::to_string(stats.probes) +
+         ",\"samples\":" + std::to_string(stats.samples) +
+         ",\"rays\":" + std::to_string(stats.rays) +
+         ",\"invalidProbes\":" + std::to_string(stats.invalidProbes) + "}";
+}
+
+absl::Status StatsFromJson(const std::string& json, BakeStats* stats) {
+  const std::optional<JsonValue> root = ParseJson(json);
+  if (!root || root->kind != JsonValue::Kind::kObject) {
+    return FieldError("stats", "not a JSON object");
+  }
+  BakeStats result;
+  const JsonValue* wall = root->Find("wallSeconds");
+  if (wall == nullptr) return FieldError("stats.wallSeconds", "missing");
+  const std::optional<double> wallSeconds = JsonDouble(*wall);
+  if (!wallSeconds) return FieldError("stats.wallSeconds", "not a number");
+  result.wallSeconds = *wallSeconds;
+  struct IntField {
+    const char* name;
+    int64_t* value;
+  };
+  int64_t threads = 0;
+  for (const IntField& field :
+       {IntField{"threads", &threads}, IntField{"probes", &result.probes},
+        IntField{"samples", &result.samples}, IntField{"rays", &result.rays},
+        IntField{"invalidProbes", &result.invalidProbes}}) {
+    const std::string path = std::string("stats.") + field.name;
+    const JsonValue* value = root->Find(field.name);
+    if (value == nullptr) return FieldError(path, "missing");
+    const std::optional<int64_t> integer = JsonInt64(*value);
+    if (!integer) return FieldError(path, "not an integer");
+    *field.value = *integer;
+  }
+  if (threads < 0 || threads > INT32_MAX) return FieldError("stats.threads", "out of range");
+  result.threads = int(threads);
+  *stats = result;
+  return absl::OkStatus();
+}
+
+absl::Status ValidateVolume(const ProbeVolume& volume) {
+  const ProbeGrid& grid = volume.grid;
+  if (volume.shOrder < 0 || volume.shOrder > kMaxVolumeShOrder) {
+    return FieldError("volume.shOrder", "must be in [0, " + std::to_string(kMaxVolumeShOrder) +
+                                            "], got " + std::to_string(volume.shOrder));
+  }
+  for (int a = 0; a < 3; ++a) {
+    const std::string axis = std::to_string(a);
+    if (grid.counts[a] < 1) {
+      return FieldError("volume.grid.counts[" + axis + "]", "must be >= 1");
+    }
+    if (!(std::isfinite(grid.spacing[a]) && grid.spacing[a] > 0)) {
+      return FieldError("volume.grid.spacing[" + axis + "]", "must be finite and > 0");
+    }
+    if (!std::isfinite(grid.origin[a])) {
+      return FieldError("volume.grid.origin[" + axis + "]", "must be finite");
+    }
+  }
+  const size_t probes = size_t(grid.ProbeCount());
+  const size_t coefficients = size_t(volume.CoeffCount());
+  auto sizeError = [](const std::string& field, size_t got, size_t expected) {
+    return FieldError(field,
+                      "size " + std::to_string(got) + ", expected " + std::to_string(expected));
+  };
+  if (volume.active.size() != probes) {
+    return sizeError("volume.active", volume.active.size(), probes);
+  }
+  if (volume.radiance.size() != coefficients) {
+    return sizeError("volume.radiance", volume.radiance.size(), coefficients);
+  }
+  for (size_t c = 0; c < coefficients; ++c) {
+    if (volume.radiance[c].size() != 3 * probes) {
+      return sizeError("volume.radiance[" + std::to_string(c) + "]", volume.radiance[c].size(),
+                       3 * probes);
+    }
+  }
+  if (!volume.irradiance.empty()) {
+    if (volume.irradiance.size() != coefficients) {
+      return sizeError("volume.irradiance", volume.irradiance.size(), coefficients);
+    }
+    for (size_t c = 0; c < coefficients; ++c) {
+      if (volume.irradiance[c].size() != 3 * probes) {
+        return sizeError("volume.irradiance[" + std::to_string(c) + "]",
+                         volume.irradiance[c].size(), 3 * probes);
+      }
+    }
+  }
+  if (volume.validity.size() != probes) {
+    return sizeError("volume.validity", volume.validity.size(), probes);
+  }
+  if (volume.stdError.size() != probes) {
+    return sizeError("volume.stdError", volume.stdError.size(), probes);
+  }
+  if (volume.sampleCount.size() != probes) {
+    return sizeError("volume.sampleCount", volume.sampleCount.size(), probes);
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace probebake::volume_internal
+
+namespace probebake {
+
+namespace {
+std::string ShGridName(const char* prefix, int coefficient) {
+  PB_CHECK(coefficient >= 0 && coefficient <= 99);
+  std::string name = prefix;
+  name.push_back(char('0' + coefficient / 10));
+  name.push_back(char('0' + coefficient % 10));
+  return name;
+}
+}  // namespace
+
+std::string RadianceGridName(int coefficient) {
+  return ShGridName("radiance_sh_", coefficient);
+}
+std::string IrradianceGridName(int coefficient) {
+  return ShGridName("irradiance_sh_", coefficient);
+}
+
+}  // namespace probebake

@@ -1,0 +1,58 @@
+// Names and encodings of the probe volume format shared by the writer and the reader (SPEC 5;
+// documented in probebake/volume/vdb_io.h). No OpenVDB types here. Private to the volume module.
+#pragma once
+
+#include <string>
+
+#include "probebake/bake/probe_volume.h"
+#include "probebake/base/status.h"
+
+namespace probebake::volume_internal {
+
+// File metadata keys.
+inline constexpr const char* kKeyFormat = "probebake_format";
+inline constexpr const char* kKeyShOrder = "sh_order";
+inline constexpr const char* kKeyShBasis = "sh_basis";
+inline constexpr const char* kKeyShWindow = "sh_window";
+inline constexpr const char* kKeyQuantity = "quantity";
+inline constexpr const char* kKeyHasIrradiance = "has_irradiance";
+inline constexpr const char* kKeyColorSpace = "color_space";
+inline constexpr const char* kKeySamplesPerProbe = "samples_per_probe";
+inline constexpr const char* kKeyMaxDepth = "max_depth";
+inline constexpr const char* kKeySeed = "seed";
+inline constexpr const char* kKeySceneDigest = "scene_digest";
+inline constexpr const char* kKeySettings = "settings";
+inline constexpr const char* kKeyGenerator = "generator";
+inline constexpr const char* kKeyStats = "stats";
+inline constexpr const char* kKeyGridCounts = "grid_counts";
+inline constexpr const char* kKeyGridMin = "grid_min";
+inline constexpr const char* kKeyGridSpacing = "grid_spacing";
+inline constexpr const char* kKeyGridPlacement = "grid_placement";
+inline constexpr const char* kKeyGridSurfaceDistance = "grid_surface_distance";
+
+// Per-grid metadata of SH grids.
+inline constexpr const char* kKeyShIndex = "sh_index";
+inline constexpr const char* kKeyShL = "sh_l";
+inline constexpr const char* kKeyShM = "sh_m";
+
+inline constexpr const char* kShBasis = "real-orthonormal-condon-shortley-zpolar";
+inline constexpr const char* kQuantity = "radiance";
+inline constexpr const char* kColorSpace = "linear-rec709";
+
+// "ALL", "OUTSIDE_GEOMETRY", "NEAR_SURFACES".
+const char* PlacementName(Placement placement);
+// Inverse of PlacementName; false for an unknown name.
+bool ParsePlacement(const std::string& name, Placement* placement);
+
+// The stats JSON object of SPEC 5 and back. Doubles and integers round-trip exactly.
+std::string StatsToJson(const BakeStats& stats);
+// INVALID_ARGUMENT "stats: <reason>" when `json` is not such an object.
+absl::Status StatsFromJson(const std::string& json, BakeStats* stats);
+
+// INVALID_ARGUMENT naming the field when `volume`'s sizes, order or grid are inconsistent.
+absl::Status ValidateVolume(const ProbeVolume& volume);
+
+// Calls openvdb::initialize() exactly once per process, from any thread.
+void InitializeOpenVdbOnce();
+
+}  // namespace probebake::volume_internal

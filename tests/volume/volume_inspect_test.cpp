@@ -1,0 +1,240 @@
+// `probebake inspect`: the report's counts, grids and per-grid statistics against values computed
+// here from the volume's own arrays, and the text and JSON forms.
+#include "probebake/volume/volume_inspect.h"
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cfloat>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+
+#include "probebake/volume/vdb_io.h"
+#include "volume/test_volumes.h"
+
+namespace probebake {
+namespace {
+
+using testing::MakeTestMetadata;
+using testing::MakeTestVolume;
+using testing::TempDir;
+using testing::TestVolumeSpec;
+
+struct Expected {
+  double min[3], max[3], mean[3];
+};
+
+// Min, max and mean per channel over the active probes, computed independently of the reader.
+Expected Stats(const ProbeVolume& v, const std::vector<float>& values, int channels) {
+  Expected e;
+  double sum[3] = {0, 0, 0};
+  for (int ch = 0; ch < channels; ++ch) {
+    e.min[ch] = std::numeric_limits<double>::infinity();
+    e.max[ch] = -std::numeric_limits<double>::infinity();
+  }
+  int64_t n = 0;
+  for (size_t p = 0; p < v.active.size(); ++p) {
+    if (!v.active[p]) continue;
+    ++n;
+    for (int ch = 0; ch < channels; ++ch) {
+      const double x = values[size_t(channels) * p + size_t(ch)];
+      e.min[ch] = std::min(e.min[ch], x);
+      e.max[ch] = std::max(e.max[ch], x);
+      sum[ch] += x;
+    }
+  }
+  for (int ch = 0; ch < channels; ++ch) e.mean[ch] = sum[ch] / double(n);
+  return e;
+}
+
+class Inspect : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    TestVolumeSpec spec;
+    spec.irradiance = true;
+    spec.awkwardValues = false;  // FLT_MAX would swamp the means
+    volume_ = MakeTestVolume(spec);
+    path_ = dir_.File("volume.vdb");
+    ASSERT_TRUE(WriteProbeVolume(path_, volume_, MakeTestMetadata()).ok());
+    for (uint8_t a : volume_.active) active_ += a;
+    for (size_t p = 0; p < volume_.active.size(); ++p) {
+      invalid_ += volume_.active[p] && volume_.validity[p] == 0;
+    }
+    ASSERT_GT(invalid_, 0);
+  }
+
+  ProbeVolume volume_;
+  TempDir dir_;
+  std::string path_;
+  int64_t active_ = 0, invalid_ = 0;
+};
+
+TEST_F(Inspect, CountsGridsAndStatistics) {
+  const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path_);
+  ASSERT_TRUE(report.ok()) << report.status();
+  EXPECT_EQ(report->probes, active_);
+  EXPECT_EQ(report->invalidProbes, invalid_);
+  EXPECT_GT(report->fileBytes, 0);
+  ASSERT_EQ(report->grids.size(), size_t(2 * volume_.CoeffCount() + 3));
+
+  for (const GridReport& g : report->grids) {
+    SCOPED_TRACE(g.name);
+    EXPECT_EQ(g.activeVoxels, active_);
+    const std::vector<float>* values = nullptr;
+    int channels = 1;
+    if (g.name.find("_sh_") != std::string::npos) {
+      const size_t c = size_t(std::stoi(g.name.substr(g.name.size() - 2)));
+      values = g.name[0] == 'r' ? &volume_.radiance[c] : &volume_.irradiance[c];
+      channels = 3;
+      EXPECT_EQ(g.valueType, "vec3s");
+    } else {
+      values = g.name == "validity"    ? &volume_.validity
+               : g.name == "std_error" ? &volume_.stdError
+                                       : &volume_.sampleCount;
+      EXPECT_EQ(g.valueType, "float");
+    }
+    ASSERT_EQ(g.channels, channels);
+    const Expected e = Stats(volume_, *values, channels);
+    for (int ch = 0; ch < channels; ++ch) {
+      // Min and max are stored floats, exact in double. The means are sums of the same ~50
+      // doubles in another order: each partial sum rounds by at most 2^-53 of its magnitude,
+      // so |difference| <= n * 2^-53 * sum|x| / n < 1e-14 * max|x|.
+      EXPECT_EQ(g.min[ch], e.min[ch]) << ch;
+      EXPECT_EQ(g.max[ch], e.max[ch]) << ch;
+      const double tolerance = 1e-14 * std::max(std::abs(e.min[ch]), std::abs(e.max[ch]));
+      EXPECT_NEAR(g.mean[ch], e.mean[ch], tolerance) << ch;
+    }
+    // Active box: the active probes' index range.
+    int lo[3] = {INT32_MAX, INT32_MAX, INT32_MAX}, hi[3] = {-1, -1, -1};
+    for (int64_t p = 0; p < volume_.grid.ProbeCount(); ++p) {
+      if (!volume_.active[size_t(p)]) continue;
+      int ijk[3];
+      volume_.grid.Coords(p, &ijk[0], &ijk[1], &ijk[2]);
+      for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], ijk[a]), hi[a] = std::max(hi[a], ijk[a]);
+    }
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(g.bboxMin[a], lo[a]);
+      EXPECT_EQ(g.bboxMax[a], hi[a]);
+    }
+  }
+  const auto it = std::find_if(report->metadata.begin(), report->metadata.end(),
+                               [](const MetadataEntry& m) { return m.name == "sh_order"; });
+  ASSERT_NE(it, report->metadata.end());
+  EXPECT_EQ(it->type, "int32");
+  EXPECT_EQ(it->value, "2");
+}
+
+TEST_F(Inspect, KnownValuesGiveKnownStatistics) {
+  // Radiance coefficient 0 = (p, 2p, -p) at probe p (p = linear index), validity 1 except 2 probes.
+  TestVolumeSpec spec;
+  spec.inactiveEvery = 4;  // probes 3, 7, 11, ... inactive
+  ProbeVolume v = MakeTestVolume(spec);
+  double sum = 0;
+  int64_t n = 0;
+  double lo = 1e300, hi = -1e300;
+  for (size_t p = 0; p < v.active.size(); ++p) {
+    v.validity[p] = v.active[p] ? 1.0f : 0.0f;
+    v.radiance[0][3 * p] = v.active[p] ? float(p) : 0.0f;
+    v.radiance[0][3 * p + 1] = v.active[p] ? 2.0f * float(p) : 0.0f;
+    v.radiance[0][3 * p + 2] = v.active[p] ? -float(p) : 0.0f;
+    if (v.active[p])
+      sum += double(p), ++n, lo = std::min(lo, double(p)), hi = std::max(hi, double(p));
+  }
+  v.validity[0] = v.validity[1] = 0;
+  const std::string path = dir_.File("known.vdb");
+  ASSERT_TRUE(WriteProbeVolume(path, v, MakeTestMetadata()).ok());
+  const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path);
+  ASSERT_TRUE(report.ok()) << report.status();
+  // 60 probes, every 4th from 3 inactive: 45 active; indices 0..59 minus 3, 7, ..., 59.
+  EXPECT_EQ(n, 45);
+  EXPECT_EQ(report->probes, 45);
+  EXPECT_EQ(report->invalidProbes, 2);
+  const GridReport& r0 =
+      *std::find_if(report->grids.begin(), report->grids.end(),
+                    [](const GridReport& g) { return g.name == "radiance_sh_00"; });
+  // Sum of 0..59 is 1770; minus 3 + 7 + ... + 59 = 15 terms averaging 31 = 465: 1305 / 45 = 29.
+  EXPECT_EQ(sum, 1305);
+  EXPECT_EQ(r0.mean[0], 29);
+  EXPECT_EQ(r0.mean[1], 58);
+  EXPECT_EQ(r0.mean[2], -29);
+  EXPECT_EQ(r0.min[0], 0);
+  EXPECT_EQ(r0.max[0], 58);
+  EXPECT_EQ(r0.min[1], 0);
+  EXPECT_EQ(r0.max[1], 116);
+  EXPECT_EQ(r0.min[2], -58);
+  EXPECT_EQ(r0.max[2], 0);
+  EXPECT_EQ(lo, 0);
+  EXPECT_EQ(hi, 58);
+  const GridReport& validity =
+      *std::find_if(report->grids.begin(), report->grids.end(),
+                    [](const GridReport& g) { return g.name == "validity"; });
+  EXPECT_EQ(validity.min[0], 0);
+  EXPECT_EQ(validity.max[0], 1);
+  EXPECT_EQ(validity.mean[0], 43.0 / 45.0);
+}
+
+TEST_F(Inspect, TextNamesProbesAndEveryGrid) {
+  const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path_);
+  ASSERT_TRUE(report.ok()) << report.status();
+  const std::string text = FormatVolumeReport(*report);
+  EXPECT_NE(text.find("probes: " + std::to_string(active_) +
+                      " (invalid: " + std::to_string(invalid_) + ")"),
+            std::string::npos)
+      << text;
+  for (int c = 0; c < volume_.CoeffCount(); ++c) {
+    EXPECT_NE(text.find(RadianceGridName(c)), std::string::npos) << text;
+    EXPECT_NE(text.find(IrradianceGridName(c)), std::string::npos) << text;
+  }
+  for (const char* name : {"validity", "std_error", "sample_count", "sh_basis", "stats"}) {
+    EXPECT_NE(text.find(name), std::string::npos) << name << "\n" << text;
+  }
+}
+
+TEST_F(Inspect, JsonParsesWithPythonAndHoldsTheFigures) {
+  constexpr const char* kPython = "/usr/bin/python3";
+  if (::access(kPython, X_OK) != 0) GTEST_SKIP() << kPython << " is missing";
+  const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path_);
+  ASSERT_TRUE(report.ok()) << report.status();
+  const std::string jsonPath = dir_.File("report.json");
+  std::ofstream(jsonPath) << VolumeReportJson(*report);
+  const std::string check =
+      "import json,sys\n"
+      "d=json.load(open(sys.argv[1]))\n"
+      "assert d['probes']==int(sys.argv[2]), d['probes']\n"
+      "assert d['invalidProbes']==int(sys.argv[3]), d['invalidProbes']\n"
+      "assert d['metadata']['sh_order']==2\n"
+      "assert d['metadata']['has_irradiance'] is True\n"
+      "assert d['metadata']['stats']['probes']==int(sys.argv[2]), d['metadata']['stats']\n"
+      "assert d['metadata']['grid_counts']==[3,4,5]\n"
+      "names=[g['name'] for g in d['grids']]\n"
+      "assert len(names)==21 and 'radiance_sh_08' in names and 'validity' in names, names\n"
+      "g=[g for g in d['grids'] if g['name']=='validity'][0]\n"
+      "assert len(g['mean'])==1 and g['activeVoxels']==int(sys.argv[2]), g\n"
+      "print('ok')\n";
+  const std::string scriptPath = dir_.File("check.py");
+  std::ofstream(scriptPath) << check;
+  const std::string command = std::string(kPython) + " '" + scriptPath + "' '" + jsonPath + "' " +
+                              std::to_string(active_) + " " + std::to_string(invalid_) + " 2>&1";
+  FILE* pipe = ::popen(command.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string output;
+  char buffer[1024];
+  size_t got;
+  while ((got = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) output.append(buffer, got);
+  const int status = ::pclose(pipe);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
+  EXPECT_EQ(output, "ok\n");
+}
+
+TEST_F(Inspect, MissingFileIsNotFound) {
+  const absl::StatusOr<VolumeReport> report = InspectProbeVolume(dir_.File("absent.vdb"));
+  EXPECT_EQ(report.status().code(), absl::StatusCode::kNotFound) << report.status();
+}
+
+}  // namespace
+}  // namespace probebake
