@@ -106,6 +106,20 @@ TEST(ParseJobJson, WrongTypesNameTheField) {
                             "grid.max[2]", "null is not allowed"));
 }
 
+TEST(ParseJobJson, IntegerEdges) {
+  const std::string base = Example();
+  EXPECT_TRUE(HasFieldError(ParseJobJson(Patched(base, "settings.seed", "\"-1\"")).status(),
+                            "settings.seed", "-1 is out of range [0, 18446744073709551615]"));
+  // 2^64 is a double equal to (double)UINT64_MAX, so only protobuf's exact parse catches it; its
+  // message is still given with the JSON path.
+  const std::string json = std::string(R"({"grid": {"min": [0, 0, 0], "max": [0, 0, 0],
+      "counts": [1, 1, 1]}, "settings": {"seed": 18446744073709551616}})");
+  EXPECT_TRUE(HasFieldError(ParseJobJson(json).status(), "settings.seed", "invalid value"));
+  const absl::StatusOr<v1::JobSpec> exact = ParseJobJson(Patched(base, "settings.maxDepth", "4.0"));
+  ASSERT_TRUE(exact.ok()) << exact.status();
+  EXPECT_EQ(exact->settings().max_depth(), 4);
+}
+
 TEST(ParseJobJson, BadEnumNames) {
   const std::string base = Example();
   EXPECT_TRUE(HasFieldError(

@@ -16,6 +16,7 @@
 #include <map>
 #include <sstream>
 #include <system_error>
+#include <type_traits>
 #include <vector>
 
 #include "errors.h"
@@ -406,7 +407,11 @@ class JsonChecker {
       T x{};
       const std::string& s = v.string_value();
       const auto r = std::from_chars(s.data(), s.data() + s.size(), x);
-      if (r.ec == std::errc::result_out_of_range && r.ptr == s.data() + s.size()) {
+      const bool negativeUnsigned =
+          std::is_unsigned_v<T> && s.size() > 1 && s[0] == '-' &&
+          std::all_of(s.begin() + 1, s.end(), [](char c) { return c >= '0' && c <= '9'; });
+      if (negativeUnsigned ||
+          (r.ec == std::errc::result_out_of_range && r.ptr == s.data() + s.size())) {
         errors_->Add(path, s + " is out of range " + range);
       } else if (r.ec != std::errc() || r.ptr != s.data() + s.size()) {
         errors_->Add(path, "expected an integer, got " + Describe(v));
@@ -438,6 +443,25 @@ class JsonChecker {
   ErrorList* errors_;
 };
 
+// protobuf's "(settings.sh_order): invalid value ..." as "settings.shOrder: invalid value ...".
+std::string ProtobufErrorMessage(const std::string& message) {
+  const size_t close = message.find("): ");
+  if (message.empty() || message[0] != '(' || close == std::string::npos) {
+    return "invalid job: " + message;
+  }
+  std::string path;
+  bool upper = false;
+  for (size_t i = 1; i < close; ++i) {
+    if (message[i] == '_') {
+      upper = true;
+    } else {
+      path += upper ? char(std::toupper(static_cast<unsigned char>(message[i]))) : message[i];
+      upper = false;
+    }
+  }
+  return path + message.substr(close + 1);
+}
+
 google::protobuf::StringPiece Piece(std::string_view s) {
   return google::protobuf::StringPiece(s.data(), s.size());
 }
@@ -461,8 +485,9 @@ absl::StatusOr<v1::JobSpec> ParseJobJson(std::string_view json) {
   v1::JobSpec job;
   const auto parsed = google::protobuf::util::JsonStringToMessage(Piece(json), &job, options);
   if (!parsed.ok()) {
-    // Not expected after the walk above; protobuf's message names the field by its .proto name.
-    return absl::InvalidArgumentError("invalid job: " + std::string(parsed.message()));
+    // Rare after the walk above (e.g. a uint64 of exactly 2^64, which a double cannot tell from
+    // 2^64 - 1); protobuf's message names the field by its .proto path.
+    return absl::InvalidArgumentError(ProtobufErrorMessage(std::string(parsed.message())));
   }
   return job;
 }
