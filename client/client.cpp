@@ -1,0 +1,322 @@
+#include "client/client.h"
+
+#include <openssl/evp.h>
+#include <openssl/rand.h>
+
+#include <fstream>
+#include <map>
+#include <thread>
+
+#include "absl/strings/escaping.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "probebake/base/check.h"
+#include "probebake/base/log.h"
+#include "probebake/base/status.h"
+#include "probebake/job/digest.h"
+#include "probebake/job/file_refs.h"
+#include "server/file_util.h"
+
+namespace probebake::client {
+
+namespace {
+
+bool IsFinal(v1::BakeJob::State state) {
+  return state == v1::BakeJob::SUCCEEDED || state == v1::BakeJob::FAILED ||
+         state == v1::BakeJob::CANCELLED;
+}
+
+// SHA-256 of a file, streamed.
+absl::StatusOr<std::string> FileSha256(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::NotFoundError(absl::StrCat(path.string(), ": cannot open"));
+  EVP_MD_CTX* ctx = EVP_MD_CTX_new();
+  PB_CHECK(ctx && EVP_DigestInit_ex(ctx, EVP_sha256(), nullptr) == 1);
+  std::string buffer(1 << 20, '\0');
+  while (in) {
+    in.read(buffer.data(), std::streamsize(buffer.size()));
+    PB_CHECK(EVP_DigestUpdate(ctx, buffer.data(), size_t(in.gcount())) == 1);
+  }
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned length = 0;
+  PB_CHECK(EVP_DigestFinal_ex(ctx, md, &length) == 1);
+  EVP_MD_CTX_free(ctx);
+  return absl::BytesToHexString(absl::string_view(reinterpret_cast<const char*>(md), length));
+}
+
+}  // namespace
+
+absl::Status FromGrpc(const grpc::Status& status) {
+  if (status.ok()) return absl::OkStatus();
+  return absl::Status(static_cast<absl::StatusCode>(status.error_code()), status.error_message());
+}
+
+std::string NewRequestId() {
+  unsigned char bytes[16];
+  PB_CHECK(RAND_bytes(bytes, sizeof(bytes)) == 1);
+  return absl::BytesToHexString(absl::string_view(reinterpret_cast<const char*>(bytes), 16));
+}
+
+int ExitCodeFor(const absl::Status& status) {
+  switch (status.code()) {
+    case absl::StatusCode::kOk:
+      return kExitOk;
+    case absl::StatusCode::kUnavailable:
+    case absl::StatusCode::kUnauthenticated:
+    case absl::StatusCode::kPermissionDenied:
+    case absl::StatusCode::kDeadlineExceeded:
+      return kExitUnreachable;
+    case absl::StatusCode::kInvalidArgument:
+    case absl::StatusCode::kFailedPrecondition:
+    case absl::StatusCode::kNotFound:
+    case absl::StatusCode::kOutOfRange:
+    case absl::StatusCode::kAlreadyExists:
+      return kExitUsage;
+    default:
+      return kExitFailure;
+  }
+}
+
+Client::Client(std::shared_ptr<grpc::Channel> channel, std::string token)
+    : channel_(std::move(channel)),
+      token_(std::move(token)),
+      capabilities_(v1::Capabilities::NewStub(channel_)),
+      content_(v1::ContentStorage::NewStub(channel_)),
+      jobs_(v1::BakeJobs::NewStub(channel_)) {}
+
+absl::StatusOr<std::unique_ptr<Client>> Client::Connect(const ConnectOptions& options) {
+  std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
+  if (options.tls || !options.tlsCaFile.empty()) {
+    grpc::SslCredentialsOptions ssl;
+    if (!options.tlsCaFile.empty()) {
+      absl::StatusOr<std::string> roots = server::ReadWholeFile(options.tlsCaFile);
+      if (!roots.ok())
+        return absl::InvalidArgumentError(
+            absl::StrCat("--tls-ca: ", std::string(roots.status().message())));
+      ssl.pem_root_certs = std::move(*roots);
+    }
+    credentials = grpc::SslCredentials(ssl);
+  }
+  grpc::ChannelArguments arguments;
+  arguments.SetMaxReceiveMessageSize(64 << 20);
+  auto channel = grpc::CreateCustomChannel(options.server, credentials, arguments);
+  if (!channel->WaitForConnected(std::chrono::system_clock::now() + options.connectTimeout))
+    return absl::UnavailableError(absl::StrCat("cannot reach the server at ", options.server));
+  std::unique_ptr<Client> client(new Client(std::move(channel), options.token));
+  return client;
+}
+
+std::unique_ptr<grpc::ClientContext> Client::Context(
+    std::optional<std::chrono::seconds> deadline) const {
+  auto context = std::make_unique<grpc::ClientContext>();
+  if (deadline) context->set_deadline(std::chrono::system_clock::now() + *deadline);
+  if (!token_.empty()) context->AddMetadata("authorization", "Bearer " + token_);
+  return context;
+}
+
+absl::StatusOr<v1::ServerCapabilities> Client::GetCapabilities() {
+  v1::ServerCapabilities capabilities;
+  auto context = Context();
+  PB_RETURN_IF_ERROR(FromGrpc(capabilities_->GetCapabilities(context.get(), {}, &capabilities)));
+  if (capabilities.chunk_bytes() > 0) chunkBytes_ = capabilities.chunk_bytes();
+  return capabilities;
+}
+
+absl::Status Client::UploadBlob(const v1::Digest& digest, const std::string& bytes,
+                                int64_t* bytesSent) {
+  // Where an earlier, interrupted upload stopped.
+  v1::QueryWriteStatusRequest query;
+  *query.mutable_digest() = digest;
+  v1::QueryWriteStatusResponse status;
+  auto queryContext = Context();
+  PB_RETURN_IF_ERROR(FromGrpc(content_->QueryWriteStatus(queryContext.get(), query, &status)));
+  if (status.complete()) return absl::OkStatus();
+  int64_t offset = status.committed_size();
+
+  auto context = Context(std::nullopt);
+  v1::WriteBlobResponse response;
+  auto writer = content_->WriteBlob(context.get(), &response);
+  bool first = true;
+  do {
+    v1::WriteBlobRequest request;
+    if (first) *request.mutable_digest() = digest;
+    first = false;
+    int64_t n = std::min<int64_t>(chunkBytes_, int64_t(bytes.size()) - offset);
+    request.set_write_offset(offset);
+    request.set_data(bytes.substr(size_t(offset), size_t(n)));
+    offset += n;
+    request.set_finish_write(offset == int64_t(bytes.size()));
+    if (!writer->Write(request)) break;  // the server ended the call; Finish says why
+    if (bytesSent) *bytesSent += n;
+  } while (offset < int64_t(bytes.size()));
+  writer->WritesDone();
+  return FromGrpc(writer->Finish());
+}
+
+absl::StatusOr<UploadReport> Client::UploadJobFiles(const std::filesystem::path& jobDir,
+                                                    v1::JobSpec* job) {
+  UploadReport report;
+  std::vector<FileReference> refs = ListFileReferences(*job);
+  report.files = int(refs.size());
+  if (refs.empty()) return report;
+  // Read and hash every file (the same file named twice is one blob).
+  std::map<std::string, std::pair<std::string, v1::Digest>> files;  // relative path -> bytes
+  for (const FileReference& ref : refs) {
+    if (files.count(ref.relativePath)) continue;
+    std::filesystem::path path = jobDir / ref.relativePath;
+    absl::StatusOr<std::string> bytes = server::ReadWholeFile(path);
+    if (!bytes.ok())
+      return FieldError(ref.fieldPath,
+                        absl::StrCat("cannot read '", ref.relativePath, "' (", path.string(), ")"));
+    v1::Digest digest = DigestOf(*bytes);
+    files.emplace(ref.relativePath, std::make_pair(std::move(*bytes), digest));
+  }
+  v1::FindMissingBlobsRequest find;
+  for (const auto& [path, file] : files) *find.add_blob_digests() = file.second;
+  v1::FindMissingBlobsResponse missing;
+  auto context = Context();
+  PB_RETURN_IF_ERROR(FromGrpc(content_->FindMissingBlobs(context.get(), find, &missing)));
+  std::set<std::string> missingHashes;
+  for (const v1::Digest& d : missing.missing_blob_digests()) missingHashes.insert(d.hash());
+  for (const auto& [path, file] : files) {
+    if (!missingHashes.count(file.second.hash())) continue;
+    PB_RETURN_IF_ERROR(UploadBlob(file.second, file.first, &report.bytesSent));
+    ++report.uploaded;
+  }
+  // Rewrite in reverse so indices of later references stay valid whatever the rewrite does.
+  for (auto it = refs.rbegin(); it != refs.rend(); ++it)
+    PB_RETURN_IF_ERROR(ReplaceFileWithBlob(*it, files.at(it->relativePath).second, job));
+  return report;
+}
+
+absl::StatusOr<v1::BakeJob> Client::CreateJob(const v1::JobSpec& job, const std::string& requestId,
+                                              bool skipCache, int maxAttempts) {
+  v1::CreateBakeJobRequest request;
+  *request.mutable_job() = job;
+  request.set_request_id(requestId);
+  request.set_skip_cache(skipCache);
+  for (int attempt = 1;; ++attempt) {
+    v1::BakeJob created;
+    auto context = Context();
+    grpc::Status status = jobs_->CreateBakeJob(context.get(), request, &created);
+    if (status.ok()) return created;
+    if (status.error_code() != grpc::StatusCode::RESOURCE_EXHAUSTED || attempt >= maxAttempts)
+      return FromGrpc(status);
+    int64_t retryMs = 5000;
+    for (const auto& [key, value] : context->GetServerTrailingMetadata()) {
+      if (key == "retry-after-ms")
+        (void)absl::SimpleAtoi(absl::string_view(value.data(), value.size()), &retryMs);
+    }
+    retryMs = std::clamp<int64_t>(retryMs, 100, 60000);
+    Logger("client")->info("{}; retrying in {} ms", status.error_message(), retryMs);
+    std::this_thread::sleep_for(std::chrono::milliseconds(retryMs));
+  }
+}
+
+absl::StatusOr<v1::BakeJob> Client::GetJob(const std::string& name) {
+  v1::GetBakeJobRequest request;
+  request.set_name(name);
+  request.set_view(v1::BASIC);
+  v1::BakeJob job;
+  auto context = Context();
+  PB_RETURN_IF_ERROR(FromGrpc(jobs_->GetBakeJob(context.get(), request, &job)));
+  return job;
+}
+
+absl::StatusOr<v1::ListBakeJobsResponse> Client::ListJobs(int pageSize,
+                                                          const std::string& pageToken) {
+  v1::ListBakeJobsRequest request;
+  request.set_page_size(pageSize);
+  request.set_page_token(pageToken);
+  v1::ListBakeJobsResponse response;
+  auto context = Context();
+  PB_RETURN_IF_ERROR(FromGrpc(jobs_->ListBakeJobs(context.get(), request, &response)));
+  return response;
+}
+
+absl::StatusOr<v1::BakeJob> Client::CancelJob(const std::string& name) {
+  v1::CancelBakeJobRequest request;
+  request.set_name(name);
+  v1::BakeJob job;
+  auto context = Context();
+  PB_RETURN_IF_ERROR(FromGrpc(jobs_->CancelBakeJob(context.get(), request, &job)));
+  return job;
+}
+
+absl::StatusOr<v1::BakeJob> Client::Watch(const std::string& name,
+                                          const std::function<void(const v1::BakeJob&)>& onUpdate,
+                                          std::chrono::seconds reconnectFor) {
+  // Start of the current run of failed attempts (time_point{} while connected).
+  std::chrono::steady_clock::time_point brokenSince{};
+  while (true) {
+    v1::WatchBakeJobRequest request;
+    request.set_name(name);
+    auto context = Context(std::nullopt);
+    auto reader = jobs_->WatchBakeJob(context.get(), request);
+    v1::BakeJob job, last;
+    bool any = false;
+    while (reader->Read(&job)) {
+      any = true;
+      brokenSince = {};
+      onUpdate(job);
+      last = job;
+    }
+    grpc::Status status = reader->Finish();
+    if (status.ok() && any && IsFinal(last.state())) return last;
+    if (status.ok()) status = {grpc::StatusCode::UNAVAILABLE, "the watch ended early"};
+    if (status.error_code() != grpc::StatusCode::UNAVAILABLE) return FromGrpc(status);
+    // The server restarts (draining or gone): wait for it, within reconnectFor.
+    auto now = std::chrono::steady_clock::now();
+    if (brokenSince == std::chrono::steady_clock::time_point{}) brokenSince = now;
+    if (now - brokenSince > reconnectFor) return FromGrpc(status);
+    Logger("client")->info("{}: {}; reconnecting", name, status.error_message());
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    channel_->WaitForConnected(std::chrono::system_clock::now() + std::chrono::seconds(5));
+  }
+}
+
+absl::Status Client::FetchBlob(const v1::Digest& digest, const std::filesystem::path& out,
+                               const std::function<void(int64_t, int64_t)>& onBytes) {
+  std::filesystem::path part = out;
+  part += ".part";
+  std::error_code ec;
+  int64_t have =
+      std::filesystem::exists(part, ec) ? int64_t(std::filesystem::file_size(part, ec)) : 0;
+  if (ec || have > digest.size_bytes()) {
+    std::filesystem::remove(part, ec);
+    have = 0;
+  }
+  if (have < digest.size_bytes()) {
+    std::ofstream file(part, std::ios::binary | std::ios::app);
+    if (!file) return absl::InvalidArgumentError(absl::StrCat(part.string(), ": cannot write"));
+    v1::ReadBlobRequest request;
+    *request.mutable_digest() = digest;
+    request.set_read_offset(have);
+    auto context = Context(std::nullopt);
+    auto reader = content_->ReadBlob(context.get(), request);
+    v1::ReadBlobResponse chunk;
+    while (reader->Read(&chunk)) {
+      file.write(chunk.data().data(), std::streamsize(chunk.data().size()));
+      have += int64_t(chunk.data().size());
+      if (onBytes) onBytes(have, digest.size_bytes());
+    }
+    file.close();
+    PB_RETURN_IF_ERROR(FromGrpc(reader->Finish()));
+    if (!file) return absl::InternalError(absl::StrCat(part.string(), ": write failed"));
+  }
+  if (have != digest.size_bytes())
+    return absl::DataLossError(absl::StrCat("received ", have, " of ", digest.size_bytes(),
+                                            " bytes; run fetch again to continue"));
+  PB_ASSIGN_OR_RETURN(std::string hash, FileSha256(part));
+  if (hash != digest.hash()) {
+    std::filesystem::remove(part, ec);
+    return absl::DataLossError(absl::StrCat("the download hashes to ", hash, ", not ",
+                                            digest.hash(), "; removed, run fetch again"));
+  }
+  std::filesystem::rename(part, out, ec);
+  if (ec)
+    return absl::InvalidArgumentError(absl::StrCat(out.string(), ": cannot write: ", ec.message()));
+  return absl::OkStatus();
+}
+
+}  // namespace probebake::client

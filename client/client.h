@@ -1,0 +1,103 @@
+// The probebake.v1 client behind the `probebake` CLI: connection and token, uploads of a job's
+// files as blobs (only the missing ones, resumable), job calls, watching, and resumable
+// downloads of result volumes. Errors are absl::Status with the gRPC code; the CLI maps codes
+// to its exit codes (ExitCodeFor).
+#pragma once
+
+#include <chrono>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include <grpcpp/grpcpp.h>
+
+#include "absl/status/statusor.h"
+#include "probebake/v1/service.grpc.pb.h"
+
+namespace probebake::client {
+
+struct ConnectOptions {
+  std::string server = "127.0.0.1:50051";  // host:port
+  std::string token;                       // empty: no authorization metadata
+  std::filesystem::path tlsCaFile;         // PEM roots; empty with `tls`: the system's roots
+  bool tls = false;
+  std::chrono::milliseconds connectTimeout{5000};
+};
+
+// What uploading a job's files did.
+struct UploadReport {
+  int files = 0;          // file references in the job
+  int uploaded = 0;       // blobs sent (the rest the server had)
+  int64_t bytesSent = 0;  // bytes of the uploaded blobs
+};
+
+class Client {
+ public:
+  // Opens the channel and waits until it connects. UNAVAILABLE when the server cannot be reached
+  // within connectTimeout.
+  static absl::StatusOr<std::unique_ptr<Client>> Connect(const ConnectOptions& options);
+
+  absl::StatusOr<v1::ServerCapabilities> GetCapabilities();
+
+  // Uploads `bytes` as a blob unless the server has it, resuming a partial upload.
+  absl::Status UploadBlob(const v1::Digest& digest, const std::string& bytes,
+                          int64_t* bytesSent = nullptr);
+
+  // Replaces every `file` of `job` (paths relative to `jobDir`) by the digest of its bytes and
+  // uploads the blobs the server lacks. INVALID_ARGUMENT naming the field for unreadable files.
+  absl::StatusOr<UploadReport> UploadJobFiles(const std::filesystem::path& jobDir,
+                                              v1::JobSpec* job);
+
+  // CreateBakeJob; RESOURCE_EXHAUSTED is retried after the server's retry-after-ms, up to
+  // `maxAttempts` times, with the same request id.
+  absl::StatusOr<v1::BakeJob> CreateJob(const v1::JobSpec& job, const std::string& requestId,
+                                        bool skipCache, int maxAttempts = 10);
+  absl::StatusOr<v1::BakeJob> GetJob(const std::string& name);
+  absl::StatusOr<v1::ListBakeJobsResponse> ListJobs(int pageSize, const std::string& pageToken);
+  absl::StatusOr<v1::BakeJob> CancelJob(const std::string& name);
+
+  // Streams the job's states to `onUpdate` until a final state, which it returns. A stream broken
+  // by a server restart (UNAVAILABLE) is resumed for up to `reconnectFor`.
+  absl::StatusOr<v1::BakeJob> Watch(const std::string& name,
+                                    const std::function<void(const v1::BakeJob&)>& onUpdate,
+                                    std::chrono::seconds reconnectFor = std::chrono::seconds(120));
+
+  // Downloads the blob to `out`: bytes go to "<out>.part", which a later call continues from its
+  // size; when complete the file's SHA-256 is checked and it is renamed to `out`. `onBytes` gets
+  // the bytes received so far.
+  absl::Status FetchBlob(const v1::Digest& digest, const std::filesystem::path& out,
+                         const std::function<void(int64_t done, int64_t total)>& onBytes = {});
+
+ private:
+  Client(std::shared_ptr<grpc::Channel> channel, std::string token);
+  std::unique_ptr<grpc::ClientContext> Context(
+      std::optional<std::chrono::seconds> deadline = std::chrono::seconds(60)) const;
+
+  std::shared_ptr<grpc::Channel> channel_;
+  std::string token_;
+  std::unique_ptr<v1::Capabilities::Stub> capabilities_;
+  std::unique_ptr<v1::ContentStorage::Stub> content_;
+  std::unique_ptr<v1::BakeJobs::Stub> jobs_;
+  int64_t chunkBytes_ = 1 << 20;
+};
+
+// grpc::Status -> absl::Status.
+absl::Status FromGrpc(const grpc::Status& status);
+
+// A fresh request id: 32 random lowercase hex digits.
+std::string NewRequestId();
+
+// SPEC 8 exit codes for an error: 4 could not reach or authenticate to the server
+// (UNAVAILABLE, UNAUTHENTICATED, PERMISSION_DENIED, DEADLINE_EXCEEDED), 2 bad usage or input
+// (INVALID_ARGUMENT, FAILED_PRECONDITION, NOT_FOUND, OUT_OF_RANGE, ALREADY_EXISTS), 1 otherwise.
+int ExitCodeFor(const absl::Status& status);
+
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;
+inline constexpr int kExitUsage = 2;
+inline constexpr int kExitJobFailed = 3;
+inline constexpr int kExitUnreachable = 4;
+
+}  // namespace probebake::client

@@ -1,0 +1,395 @@
+// probebake: bake locally, inspect volumes, and drive a probebake-server (SPEC 8).
+//
+//   probebake bake JOB.json -o OUT.vdb [--threads N] [--json]
+//   probebake inspect OUT.vdb [--json] [--slice AXIS=VALUE -o PNG]
+//   probebake submit JOB.json [--wait] [-o OUT.vdb] [--skip-cache] [--request-id ID]
+//   probebake watch NAME | status NAME | fetch NAME -o OUT.vdb | cancel NAME | list
+//   client options: --server ADDR ($PROBEBAKE_SERVER, default 127.0.0.1:50051),
+//                   --token-file F ($PROBEBAKE_TOKEN), --tls, --tls-ca F, --json
+//
+// Exit codes: 0 success; 2 bad usage or bad input (the message names the file and field);
+// 3 the job failed or was cancelled; 4 could not reach or authenticate to the server; 1 other
+// failures.
+#include <signal.h>
+
+#include <atomic>
+#include <cstdio>
+#include <cstdlib>
+
+#include <CLI/CLI.hpp>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_split.h"
+#include "client/client.h"
+#include "client/progress.h"
+#include "probebake/bake/bake.h"
+#include "probebake/base/log.h"
+#include "probebake/job/asset_source.h"
+#include "probebake/job/job.h"
+#include "probebake/job/job_json.h"
+#include "probebake/job/validate.h"
+#include "probebake/volume/irradiance_slice.h"
+#include "probebake/volume/vdb_io.h"
+#include "probebake/volume/volume_inspect.h"
+#include "server/bake_backend.h"
+#include "server/file_util.h"
+
+namespace probebake::client {
+namespace {
+
+std::atomic<bool> gInterrupted{false};
+
+extern "C" void OnInterrupt(int) {
+  gInterrupted.store(true);
+}
+
+int Fail(int code, const std::string& message) {
+  std::fprintf(stderr, "probebake: %s\n", message.c_str());
+  return code;
+}
+
+int Fail(const absl::Status& status, const std::string& context = "") {
+  std::string message(status.message());
+  if (!context.empty()) {
+    // Prefix every line (validation reports one error per line) with the file.
+    std::string prefixed;
+    for (absl::string_view line : absl::StrSplit(message, '\n'))
+      absl::StrAppend(&prefixed, prefixed.empty() ? "" : "\n", context, ": ", line);
+    message = prefixed;
+  }
+  return Fail(ExitCodeFor(status), message);
+}
+
+bool IsFinal(v1::BakeJob::State state) {
+  return state == v1::BakeJob::SUCCEEDED || state == v1::BakeJob::FAILED ||
+         state == v1::BakeJob::CANCELLED;
+}
+
+int ExitCodeForJob(const v1::BakeJob& job) {
+  return job.state() == v1::BakeJob::FAILED || job.state() == v1::BakeJob::CANCELLED
+             ? kExitJobFailed
+             : kExitOk;
+}
+
+struct ClientFlags {
+  std::string server;
+  std::string tokenFile;
+  std::string tlsCa;
+  bool tls = false;
+  bool json = false;
+};
+
+void AddClientFlags(CLI::App* command, ClientFlags* flags) {
+  command->add_option("--server", flags->server,
+                      "Server host:port (default $PROBEBAKE_SERVER or 127.0.0.1:50051)");
+  command->add_option("--token-file", flags->tokenFile,
+                      "File with the bearer token (default: $PROBEBAKE_TOKEN)");
+  command->add_flag("--tls", flags->tls, "Connect with TLS (system roots unless --tls-ca)");
+  command->add_option("--tls-ca", flags->tlsCa, "PEM root certificates for TLS");
+  command->add_flag("--json", flags->json, "One JSON object per line on stdout");
+}
+
+absl::StatusOr<std::unique_ptr<Client>> ConnectFrom(const ClientFlags& flags) {
+  ConnectOptions options;
+  const char* envServer = std::getenv("PROBEBAKE_SERVER");
+  options.server = !flags.server.empty()       ? flags.server
+                   : (envServer && *envServer) ? envServer
+                                               : "127.0.0.1:50051";
+  if (!flags.tokenFile.empty()) {
+    absl::StatusOr<std::string> token = server::ReadWholeFile(flags.tokenFile);
+    if (!token.ok())
+      return absl::InvalidArgumentError(
+          absl::StrCat("--token-file: ", std::string(token.status().message())));
+    options.token = std::string(absl::StripAsciiWhitespace(*token));
+  } else if (const char* envToken = std::getenv("PROBEBAKE_TOKEN")) {
+    options.token = std::string(absl::StripAsciiWhitespace(envToken));
+  }
+  options.tls = flags.tls;
+  options.tlsCaFile = flags.tlsCa;
+  return Client::Connect(options);
+}
+
+JobLimits LimitsFrom(const v1::JobLimits& l) {
+  JobLimits limits;
+  limits.maxProbes = l.max_probes();
+  limits.maxTriangles = l.max_triangles();
+  limits.maxSamplesPerProbe = l.max_samples_per_probe();
+  limits.maxShOrder = l.max_sh_order();
+  limits.maxDepth = l.max_depth();
+  limits.maxLights = l.max_lights();
+  limits.maxAssetBytes = l.max_asset_bytes();
+  limits.maxEnvironmentPixels = l.max_environment_pixels();
+  return limits;
+}
+
+// ---- bake (local) ----
+
+int RunBake(const std::string& jobPath, const std::string& out, int threads, bool json) {
+  absl::StatusOr<BakeJob> job = LoadBakeJob(jobPath, JobLimits());
+  if (!job.ok()) return Fail(kExitUsage, std::string(job.status().message()));
+  // Ctrl-C cancels the bake cleanly (exit 3) instead of killing it.
+  struct sigaction action = {};
+  action.sa_handler = OnInterrupt;
+  sigaction(SIGINT, &action, nullptr);
+  ProgressView view(ProgressView::Choose(json));
+  BakeOptions options;
+  options.threads = threads;
+  options.cancel = &gInterrupted;
+  options.progress = [&](const BakeProgress& p) { view.Update(p); };
+  absl::StatusOr<ProbeVolume> volume = Bake(*job, options);
+  view.Done();
+  if (!volume.ok()) {
+    if (absl::IsCancelled(volume.status())) return Fail(kExitJobFailed, "bake cancelled");
+    return Fail(kExitJobFailed,
+                absl::StrCat(jobPath, ": bake failed: ", std::string(volume.status().message())));
+  }
+  BakeStats stats = volume->stats;
+  absl::Status written = WriteProbeVolume(out, std::move(*volume), server::VolumeMetadataFor(*job));
+  if (!written.ok()) return Fail(kExitUsage, std::string(written.message()));
+  if (json) {
+    std::printf(
+        "{\"output\":%s,\"stats\":{\"wallSeconds\":%.6g,\"threads\":%d,\"probes\":%lld,"
+        "\"samples\":%lld,\"rays\":%lld,\"invalidProbes\":%lld}}\n",
+        JsonQuote(out).c_str(), stats.wallSeconds, stats.threads, (long long)stats.probes,
+        (long long)stats.samples, (long long)stats.rays, (long long)stats.invalidProbes);
+  } else {
+    std::fprintf(stderr,
+                 "wrote %s: %lld probes (%lld invalid), %lld samples, %lld rays in %.2f s\n",
+                 out.c_str(), (long long)stats.probes, (long long)stats.invalidProbes,
+                 (long long)stats.samples, (long long)stats.rays, stats.wallSeconds);
+  }
+  return kExitOk;
+}
+
+// ---- inspect ----
+
+int RunInspect(const std::string& path, bool json, const std::string& slice,
+               const std::string& png) {
+  if (!slice.empty()) {
+    if (png.empty()) return Fail(kExitUsage, "--slice needs -o PNG");
+    SliceOptions options;
+    if (absl::Status parsed = ParseSliceSpec(slice, &options); !parsed.ok())
+      return Fail(kExitUsage, std::string(parsed.message()));
+    absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
+    if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+    if (absl::Status written = WriteIrradianceSlice(file->volume, options, png); !written.ok())
+      return Fail(kExitUsage, std::string(written.message()));
+    if (!json) std::fprintf(stderr, "wrote %s\n", png.c_str());
+    return kExitOk;
+  }
+  absl::StatusOr<VolumeReport> report = InspectProbeVolume(path);
+  if (!report.ok()) return Fail(kExitUsage, std::string(report.status().message()));
+  if (json)
+    std::printf("%s\n", VolumeReportJson(*report).c_str());
+  else
+    std::printf("%s", FormatVolumeReport(*report).c_str());
+  return kExitOk;
+}
+
+// ---- client commands ----
+
+// Watches until final, showing progress; 0 / 3 by the final state.
+int WatchAndReport(Client& client, const std::string& name, ProgressView& view,
+                   v1::BakeJob* final) {
+  absl::StatusOr<v1::BakeJob> job =
+      client.Watch(name, [&](const v1::BakeJob& update) { view.Update(update); });
+  view.Done();
+  if (!job.ok()) return Fail(job.status(), name);
+  *final = *job;
+  return ExitCodeForJob(*job);
+}
+
+int Fetch(Client& client, const v1::BakeJob& job, const std::string& out, ProgressView& view) {
+  if (job.state() != v1::BakeJob::SUCCEEDED) {
+    if (IsFinal(job.state()))
+      return Fail(kExitJobFailed, absl::StrCat(JobSummary(job), "; nothing to fetch"));
+    return Fail(kExitUsage,
+                absl::StrCat(job.name(), " has not finished (",
+                             v1::BakeJob::State_Name(job.state()), "); watch it first"));
+  }
+  absl::Status fetched =
+      client.FetchBlob(job.result().volume(), out,
+                       [&](int64_t done, int64_t total) { view.Bytes("fetch", done, total); });
+  view.Done();
+  if (!fetched.ok()) return Fail(fetched, out);
+  if (view.mode() == ProgressView::Mode::kJson)
+    std::printf(
+        "{\"name\":\"%s\",\"output\":%s,\"volume\":{\"hash\":\"%s\",\"sizeBytes\":\"%lld\"}}\n",
+        job.name().c_str(), JsonQuote(out).c_str(), job.result().volume().hash().c_str(),
+        (long long)job.result().volume().size_bytes());
+  else
+    std::fprintf(stderr, "wrote %s (%lld bytes, sha256 verified)\n", out.c_str(),
+                 (long long)job.result().volume().size_bytes());
+  return kExitOk;
+}
+
+int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
+              const std::string& out, bool skipCache, std::string requestId) {
+  absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
+  if (!spec.ok()) return Fail(kExitUsage, std::string(spec.status().message()));
+  auto client = ConnectFrom(flags);
+  if (!client.ok()) return Fail(client.status());
+  absl::StatusOr<v1::ServerCapabilities> capabilities = (*client)->GetCapabilities();
+  if (!capabilities.ok()) return Fail(capabilities.status());
+  // The server's limits, checked before anything is uploaded.
+  if (absl::Status valid = ValidateJobSpec(*spec, LimitsFrom(capabilities->job_limits()));
+      !valid.ok())
+    return Fail(valid, jobPath);
+  absl::StatusOr<UploadReport> uploaded = (*client)->UploadJobFiles(JobFileDir(jobPath), &*spec);
+  if (!uploaded.ok()) return Fail(uploaded.status(), jobPath);
+  if (uploaded->files > 0)
+    Logger("client")->info("{} file(s): {} uploaded ({} bytes), {} already on the server",
+                           uploaded->files, uploaded->uploaded, uploaded->bytesSent,
+                           uploaded->files - uploaded->uploaded);
+  if (requestId.empty()) requestId = NewRequestId();
+  absl::StatusOr<v1::BakeJob> job = (*client)->CreateJob(*spec, requestId, skipCache);
+  if (!job.ok()) return Fail(job.status(), jobPath);
+  ProgressView view(ProgressView::Choose(flags.json));
+  if (flags.json)
+    std::printf("%s\n", JobJson(*job).c_str());
+  else
+    std::printf("%s\n", JobSummary(*job).c_str());
+  std::fflush(stdout);
+  if (!wait && out.empty()) return kExitOk;
+  v1::BakeJob final = *job;
+  if (!IsFinal(job->state())) {
+    int code = WatchAndReport(**client, job->name(), view, &final);
+    if (code != kExitOk) return code;
+  }
+  if (final.state() != v1::BakeJob::SUCCEEDED) return Fail(kExitJobFailed, JobSummary(final));
+  return out.empty() ? kExitOk : Fetch(**client, final, out, view);
+}
+
+int RunWatch(const ClientFlags& flags, const std::string& name) {
+  auto client = ConnectFrom(flags);
+  if (!client.ok()) return Fail(client.status());
+  ProgressView view(ProgressView::Choose(flags.json));
+  v1::BakeJob final;
+  int code = WatchAndReport(**client, name, view, &final);
+  if (code == kExitJobFailed && !flags.json) Fail(code, JobSummary(final));
+  return code;
+}
+
+int RunStatus(const ClientFlags& flags, const std::string& name) {
+  auto client = ConnectFrom(flags);
+  if (!client.ok()) return Fail(client.status());
+  absl::StatusOr<v1::BakeJob> job = (*client)->GetJob(name);
+  if (!job.ok()) return Fail(job.status());
+  std::printf("%s\n", flags.json ? JobJson(*job).c_str() : JobSummary(*job).c_str());
+  return ExitCodeForJob(*job);
+}
+
+int RunFetch(const ClientFlags& flags, const std::string& name, const std::string& out) {
+  auto client = ConnectFrom(flags);
+  if (!client.ok()) return Fail(client.status());
+  absl::StatusOr<v1::BakeJob> job = (*client)->GetJob(name);
+  if (!job.ok()) return Fail(job.status());
+  ProgressView view(ProgressView::Choose(flags.json));
+  return Fetch(**client, *job, out, view);
+}
+
+int RunCancel(const ClientFlags& flags, const std::string& name) {
+  auto client = ConnectFrom(flags);
+  if (!client.ok()) return Fail(client.status());
+  absl::StatusOr<v1::BakeJob> job = (*client)->CancelJob(name);
+  if (!job.ok()) return Fail(job.status());
+  if (!IsFinal(job->state())) {
+    // Cancellation reaches the baker within a fraction of a second: wait for the final state.
+    job = (*client)->Watch(
+        name, [](const v1::BakeJob&) {}, std::chrono::seconds(10));
+    if (!job.ok()) return Fail(job.status());
+  }
+  std::printf("%s\n", flags.json ? JobJson(*job).c_str() : JobSummary(*job).c_str());
+  return kExitOk;
+}
+
+int RunList(const ClientFlags& flags, int pageSize) {
+  auto client = ConnectFrom(flags);
+  if (!client.ok()) return Fail(client.status());
+  std::string token;
+  do {
+    absl::StatusOr<v1::ListBakeJobsResponse> page = (*client)->ListJobs(pageSize, token);
+    if (!page.ok()) return Fail(page.status());
+    for (const v1::BakeJob& job : page->bake_jobs())
+      std::printf("%s\n", flags.json ? JobJson(job).c_str() : JobSummary(job).c_str());
+    token = page->next_page_token();
+  } while (!token.empty());
+  return kExitOk;
+}
+
+int Main(int argc, char** argv) {
+  CLI::App app{"probebake: bake light probes locally or on a probebake-server"};
+  app.require_subcommand(1);
+  std::string logLevel = "warn";
+  app.add_option("--log-level", logLevel, "trace, debug, info, warn, error or off")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}));
+
+  std::string jobPath, out, path, name, slice, requestId;
+  int threads = 0, pageSize = 100;
+  bool json = false, wait = false, skipCache = false;
+  ClientFlags flags;
+
+  CLI::App* bake = app.add_subcommand("bake", "Bake JOB.json locally, in process");
+  bake->add_option("job", jobPath, "Job file (SPEC 4a)")->required();
+  bake->add_option("-o,--output", out, "Probe volume to write (.vdb)")->required();
+  bake->add_option("--threads", threads, "Worker threads (0: all)")->check(CLI::NonNegativeNumber);
+  bake->add_flag("--json", json, "Progress and result as JSON lines on stdout");
+
+  CLI::App* inspect = app.add_subcommand("inspect", "Describe a probe volume file");
+  inspect->add_option("volume", path, "Probe volume (.vdb)")->required();
+  inspect->add_flag("--json", json, "One JSON object on stdout");
+  inspect->add_option("--slice", slice, "AXIS=VALUE: render an irradiance slice to -o PNG");
+  inspect->add_option("-o,--output", out, "PNG for --slice");
+
+  CLI::App* submit = app.add_subcommand("submit", "Upload JOB.json's files and queue the bake");
+  submit->add_option("job", jobPath, "Job file (SPEC 4a)")->required();
+  submit->add_flag("--wait", wait, "Watch the job until it ends");
+  submit->add_option("-o,--output", out, "Fetch the volume here when it succeeds (implies --wait)");
+  submit->add_flag("--skip-cache", skipCache, "Bake even if the result cache has this job");
+  submit->add_option("--request-id", requestId, "Idempotency key (default: a random one)");
+  AddClientFlags(submit, &flags);
+
+  CLI::App* watch = app.add_subcommand("watch", "Follow a job until it ends");
+  watch->add_option("name", name, "bakeJobs/<id>")->required();
+  AddClientFlags(watch, &flags);
+  CLI::App* status = app.add_subcommand("status", "Show a job");
+  status->add_option("name", name, "bakeJobs/<id>")->required();
+  AddClientFlags(status, &flags);
+  CLI::App* fetch = app.add_subcommand("fetch", "Download a job's volume (resumable)");
+  fetch->add_option("name", name, "bakeJobs/<id>")->required();
+  fetch->add_option("-o,--output", out, "Probe volume to write (.vdb)")->required();
+  AddClientFlags(fetch, &flags);
+  CLI::App* cancel = app.add_subcommand("cancel", "Cancel a job");
+  cancel->add_option("name", name, "bakeJobs/<id>")->required();
+  AddClientFlags(cancel, &flags);
+  CLI::App* list = app.add_subcommand("list", "List jobs, oldest first");
+  list->add_option("--page-size", pageSize, "Jobs per request")->check(CLI::PositiveNumber);
+  AddClientFlags(list, &flags);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    int code = app.exit(e);
+    return code == 0 ? kExitOk : kExitUsage;
+  }
+  SetLogLevel(spdlog::level::from_str(logLevel));
+
+  if (*bake) return RunBake(jobPath, out, threads, json);
+  if (*inspect) return RunInspect(path, json, slice, out);
+  if (*submit) return RunSubmit(flags, jobPath, wait, out, skipCache, requestId);
+  if (*watch) return RunWatch(flags, name);
+  if (*status) return RunStatus(flags, name);
+  if (*fetch) return RunFetch(flags, name, out);
+  if (*cancel) return RunCancel(flags, name);
+  if (*list) return RunList(flags, pageSize);
+  return kExitUsage;
+}
+
+}  // namespace
+}  // namespace probebake::client
+
+int main(int argc, char** argv) {
+  return probebake::client::Main(argc, argv);
+}
