@@ -7,12 +7,14 @@
 //   ProbeVolume::irradiance is non-empty; validity, std_error and sample_count, FloatGrid. No
 //   other grids. Values are stored as 32-bit floats exactly as given (never as half), background
 //   0, grid class "unknown", Vec3 grids with vector type "invariant" (RGB does not transform).
-//   Each SH grid also carries int32 metadata sh_index, sh_l and sh_m.
+//   Each SH grid also carries int32 metadata sh_index, sh_l and sh_m (OpenVDB adds its own
+//   file_bbox_min/max, file_voxel_count, file_mem_bytes and file_compression).
 // - One transform shared by every grid: a linear scale-translate map with voxel size = probe
 //   spacing per axis, so index (i, j, k) maps to world origin + spacing * (i, j, k): integer
 //   index coordinates are voxel centres, and voxel centres are probes.
 // - Active voxels are exactly the baked probes (ProbeVolume::active), identical in every grid;
-//   inactive voxels hold the background 0.
+//   inactive voxels hold the background 0: values of unbaked probes are not stored, and read back
+//   as 0.
 // - Compression: OpenVDB's default for files, blosc + active-mask compression (this OpenVDB build
 //   has blosc; zip would be its fallback). Lossless.
 // - File metadata (name: OpenVDB metadata type, all readable by pyopenvdb):
@@ -36,8 +38,9 @@
 //   fsynced, renamed over `path`, then the directory is fsynced. A failed write leaves `path` as it
 //   was (absent or the previous file) and no temporary file.
 // - Bytes: identical to what openvdb::io::File::write produces for the same grids (written grid
-//   by grid through OpenVDB's own archive writer), except the header's random 16-byte UUID, which
-//   OpenVDB draws anew for every file.
+//   by grid through OpenVDB's own archive writer), except the header's random UUID (36
+//   characters), which OpenVDB draws anew for every file: the same volume written twice gives
+//   files that differ in those bytes only.
 #pragma once
 
 #include <cstdint>
@@ -68,7 +71,9 @@ std::string IrradianceGridName(int coefficient);
 // with `path` in the message. Thread safe for distinct paths.
 //
 // Memory: grids are built, written and freed one at a time, so the extra memory while writing is
-// about one grid (one coefficient plane), not a copy of the volume.
+// about one grid (one coefficient plane), not a copy of the volume. Measured on a dense 128^3 L2
+// volume (242 MiB in memory, a 226 MiB file): +15 MiB peak resident memory, +10 MiB with the
+// overload below.
 absl::Status WriteProbeVolume(const std::string& path, const ProbeVolume& volume,
                               const VolumeMetadata& meta);
 // As above, and releases each coefficient plane of `volume` (radiance, irradiance, validity,
