@@ -35,12 +35,15 @@ struct BakeOptions {
   double progressIntervalSeconds = 0.25;
   // Set to true (from any thread) to stop the bake; Bake then returns CANCELLED.
   const std::atomic<bool>* cancel = nullptr;
+  // Also report the standard error of every radiance coefficient (ProbeVolume::radianceStdError).
+  bool coefficientErrors = false;
   // Optional resumption: a partial volume from an earlier run of the same job, whose finished
   // probes ((*resumeDone)[probe] != 0) are kept as they are and not re-baked.
   const ProbeVolume* resumeFrom = nullptr;
   const std::vector<uint8_t>* resumeDone = nullptr;
-  // Optional checkpoint hook: called from worker threads, serialised, with the volume so far and
-  // the per-probe done flags, at most every `checkpointIntervalSeconds`.
+  // Optional checkpoint hook: called from worker threads, serialised, at most every
+  // `checkpointIntervalSeconds` and once more on cancellation, with a snapshot holding the
+  // finished probes (others zero) and the per-probe done flags: what resumeFrom/resumeDone take.
   std::function<void(const ProbeVolume&, const std::vector<uint8_t>& done)> checkpoint;
   double checkpointIntervalSeconds = 10;
 };

@@ -31,6 +31,10 @@ struct ProbeVolume {
   std::vector<std::vector<float>> radiance;
   // Same layout; empty unless irradiance was requested. The window is applied here only.
   std::vector<std::vector<float>> irradiance;
+  // Optional (BakeOptions::coefficientErrors): the standard error of every radiance coefficient
+  // and channel, same layout as `radiance`, absolute (radiance units). Not written to files; for
+  // tests and the accuracy benchmark.
+  std::vector<std::vector<float>> radianceStdError;
   std::vector<float> validity;     // per probe: 1 valid, 0 inside geometry
   std::vector<float> stdError;     // per probe: relative standard error of luminance L0
   std::vector<float> sampleCount;  // per probe: sample paths taken

@@ -1,0 +1,354 @@
+#include "probebake/bake/bake.h"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <mutex>
+#include <numeric>
+#include <thread>
+
+#include "probe_finish.h"
+#include "probe_integrator.h"
+#include "probebake/base/log.h"
+#include "probebake/base/status.h"
+#include "probebake/sampling/hash.h"
+#include "probebake/sampling/sampler.h"
+#include "probebake/sampling/warps.h"
+#include "probebake/sh/sh_basis.h"
+#include "tracer_scene.h"
+
+namespace probebake {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Rays per probe for the inside-geometry test (SPEC 3): a probe is invalid when more than
+// backfaceFraction of them first hit a back face. 128 directions of one Sobol stream resolve the
+// fraction to 1/128, far finer than any sensible threshold.
+constexpr int kValidityRays = 128;
+// Stream id of the validity rays, outside the range of batch ids.
+constexpr uint64_t kValidityStream = ~uint64_t{0};
+// Adaptive sampling looks at the error estimate only once this many batches exist: fewer give
+// too noisy an estimate of the standard error.
+constexpr int kMinAdaptiveBatches = 8;
+
+double Seconds(Clock::time_point since) {
+  return std::chrono::duration<double>(Clock::now() - since).count();
+}
+
+// Sample counts of the batches of one probe: `batches` nearly equal parts of `samples`.
+int64_t BatchSize(int64_t samples, int batches, int b) {
+  return samples / batches + (b < samples % batches ? 1 : 0);
+}
+
+// Reports progress and takes checkpoints from its own thread at their intervals while workers
+// run (so a long batch never delays a report or a cancellation), and once more when stopped.
+class Reporter {
+ public:
+  Reporter(const BakeOptions& options, SharedCounters& counters, int64_t total, int64_t resumed,
+           Clock::time_point start, const ProbeVolume& volume,
+           const std::vector<std::atomic<uint8_t>>& done)
+      : options_(options),
+        counters_(counters),
+        total_(total),
+        resumed_(resumed),
+        start_(start),
+        volume_(volume),
+        done_(done),
+        probesDone_(resumed) {
+    if (options_.progress || options_.checkpoint) thread_ = std::thread([this] { Run(); });
+  }
+  ~Reporter() { Stop(false); }
+
+  void ProbeDone(double relError) {
+    std::lock_guard lock(mutex_);
+    ++probesDone_;
+    if (std::isfinite(relError)) {
+      errorSum_ += relError;
+      ++errorCount_;
+    }
+  }
+
+  // Ends the thread; a last progress report, and a last checkpoint when asked (cancellation).
+  void Stop(bool checkpoint) {
+    {
+      std::lock_guard lock(mutex_);
+      if (stopped_) return;
+      stopped_ = true;
+    }
+    wake_.notify_all();
+    if (thread_.joinable()) thread_.join();
+    if (options_.progress) options_.progress(Snapshot());
+    if (checkpoint && options_.checkpoint) Checkpoint();
+  }
+
+ private:
+  void Run() {
+    auto lastCheckpoint = Clock::now();
+    const auto interval =
+        std::chrono::duration<double>(std::max(0.001, options_.progressIntervalSeconds));
+    std::unique_lock lock(mutex_);
+    while (!wake_.wait_for(lock, interval, [&] { return stopped_; })) {
+      lock.unlock();
+      if (options_.progress) options_.progress(Snapshot());
+      if (options_.checkpoint && Seconds(lastCheckpoint) >= options_.checkpointIntervalSeconds) {
+        lastCheckpoint = Clock::now();
+        Checkpoint();
+      }
+      lock.lock();
+    }
+  }
+
+  void Checkpoint() {
+    // Workers keep writing unfinished probes: hand out a copy of the finished ones only.
+    ProbeVolume snapshot = EmptyLike(volume_);
+    std::vector<uint8_t> flags(done_.size());
+    for (size_t i = 0; i < flags.size(); ++i) {
+      flags[i] = done_[i].load(std::memory_order_acquire);
+      if (flags[i]) CopyProbe(volume_, int64_t(i), &snapshot);
+    }
+    options_.checkpoint(snapshot, flags);
+  }
+
+  BakeProgress Snapshot() {
+    BakeProgress p;
+    {
+      std::lock_guard lock(mutex_);
+      p.probesDone = probesDone_;
+      p.errorEstimate = errorCount_ ? errorSum_ / double(errorCount_) : -1;
+    }
+    p.probesTotal = total_;
+    p.samples = counters_.samples.load(std::memory_order_relaxed);
+    p.rays = counters_.rays.load(std::memory_order_relaxed);
+    p.elapsedSeconds = Seconds(start_);
+    if (p.probesDone >= total_) {
+      p.etaSeconds = 0;
+    } else if (p.probesDone > resumed_) {
+      p.etaSeconds =
+          p.elapsedSeconds * double(total_ - p.probesDone) / double(p.probesDone - resumed_);
+    }
+    return p;
+  }
+
+  const BakeOptions& options_;
+  SharedCounters& counters_;
+  const int64_t total_, resumed_;
+  const Clock::time_point start_;
+  const ProbeVolume& volume_;
+  const std::vector<std::atomic<uint8_t>>& done_;
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  bool stopped_ = false;
+  int64_t probesDone_ = 0, errorCount_ = 0;
+  double errorSum_ = 0;
+  std::thread thread_;
+};
+
+absl::Status CheckSettings(const BakeJob& job) {
+  const BakeSettings& s = job.settings;
+  if (s.shOrder < 0 || s.shOrder > kMaxShOrder)
+    return FieldError("settings.shOrder", "must be in [0, " + std::to_string(kMaxShOrder) + "]");
+  if (s.samplesPerProbe < 1 || s.samplesPerProbe >= (int64_t{1} << 32))
+    return FieldError("settings.samplesPerProbe", "must be in [1, 2^32)");
+  if (s.maxDepth < 1) return FieldError("settings.maxDepth", "must be >= 1");
+  if (s.batches < 1) return FieldError("settings.batches", "must be >= 1");
+  if (s.window != ShWindow::kNone)
+    return FieldError("settings.window", "windows are not supported by this baker yet");
+  for (int a = 0; a < 3; ++a) {
+    if (job.grid.counts[a] < 1) return FieldError("grid.counts", "must be >= 1 on every axis");
+    if (!(job.grid.spacing[a] > 0)) return FieldError("grid.spacing", "must be > 0");
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& options,
+                                        int threads) {
+  const auto start = Clock::now();
+  auto log = Logger("bake");
+  const BakeSettings& settings = job.settings;
+  const ProbeGrid& grid = job.grid;
+  const int64_t probeCount = grid.ProbeCount();
+  const int coeffs = ShCoeffCount(settings.shOrder);
+
+  const Vec3d offset = LocalOrigin(job.scene, grid);
+  PB_ASSIGN_OR_RETURN(std::unique_ptr<TracerScene> tracer, TracerScene::Build(job.scene, offset));
+  const LightSet lights(job.scene, *tracer);
+  const ProbeIntegrator integrator(job.scene, *tracer, lights, settings);
+  const ProbeFinisher finisher(settings);
+  log->info("scene ready in {:.3f} s: {} meshes, {} lights, {} probes, order {}, {} samples/probe",
+            Seconds(start), job.scene.meshes.size(), lights.Count(), probeCount, settings.shOrder,
+            settings.samplesPerProbe);
+
+  ProbeVolume volume;
+  volume.grid = grid;
+  volume.shOrder = settings.shOrder;
+  volume.window = finisher.WindowName();
+  volume.active.assign(probeCount, 0);
+  volume.validity.assign(probeCount, 0.0f);
+  volume.stdError.assign(probeCount, 0.0f);
+  volume.sampleCount.assign(probeCount, 0.0f);
+  volume.radiance.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
+  if (settings.irradiance)
+    volume.irradiance.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
+  if (options.coefficientErrors)
+    volume.radianceStdError.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
+
+  auto localPosition = [&](int64_t probe) {
+    int i, j, k;
+    grid.Coords(probe, &i, &j, &k);
+    return grid.Position(i, j, k) - offset;
+  };
+
+  // Placement and validity: which probes are inside geometry, which are near a surface.
+  std::atomic<int64_t> prepassRays{0};
+  tbb::parallel_for(
+      tbb::blocked_range<int64_t>(0, probeCount, 64),
+      [&](const tbb::blocked_range<int64_t>& range) {
+        int64_t rays = 0;
+        for (int64_t probe = range.begin(); probe != range.end(); ++probe) {
+          const Vec3d p = localPosition(probe);
+          const Vec3f origin(p);
+          SobolSampler sampler(settings.seed, Hash(uint64_t(probe), kValidityStream));
+          int backfaces = 0;
+          for (int r = 0; r < kValidityRays; ++r) {
+            sampler.StartSample(uint64_t(r));
+            const Vec3d wi = SampleUniformSphere(sampler.Get2D());
+            SurfaceHit hit;
+            ++rays;
+            if (tracer->Intersect(origin, wi, std::numeric_limits<double>::infinity(), &hit) &&
+                hit.kind == SurfaceKind::kMesh && Dot(wi, hit.ng) > 0)
+              ++backfaces;
+          }
+          const bool valid = double(backfaces) <= settings.backfaceFraction * kValidityRays;
+          volume.validity[probe] = valid ? 1.0f : 0.0f;
+          bool active = true;
+          if (grid.placement == Placement::kOutsideGeometry) active = valid;
+          if (grid.placement == Placement::kNearSurfaces)
+            active = valid && tracer->MeshWithin(p, grid.surfaceDistance);
+          volume.active[probe] = active ? 1 : 0;
+        }
+        prepassRays.fetch_add(rays, std::memory_order_relaxed);
+      });
+
+  std::vector<int64_t> todo;
+  std::vector<std::atomic<uint8_t>> done(probeCount);
+  int64_t resumed = 0;
+  const bool resume = options.resumeFrom && options.resumeDone &&
+                      options.resumeFrom->grid.ProbeCount() == probeCount &&
+                      options.resumeDone->size() == size_t(probeCount) &&
+                      options.resumeFrom->shOrder == settings.shOrder;
+  for (int64_t probe = 0; probe < probeCount; ++probe) {
+    if (!volume.active[probe]) continue;
+    if (resume && (*options.resumeDone)[probe]) {
+      CopyProbe(*options.resumeFrom, probe, &volume);
+      done[probe].store(1, std::memory_order_relaxed);
+      ++resumed;
+      continue;
+    }
+    todo.push_back(probe);
+  }
+  const int64_t activeCount = int64_t(todo.size()) + resumed;
+  if (options.resumeFrom && !resume)
+    log->warn("resume data does not match this job; baking every probe");
+  log->info("placement: {} of {} probes active ({} resumed), {} invalid, {:.3f} s", activeCount,
+            probeCount, resumed, std::count(volume.validity.begin(), volume.validity.end(), 0.0f),
+            Seconds(start));
+
+  SharedCounters counters;
+  counters.rays.fetch_add(prepassRays.load(), std::memory_order_relaxed);
+  Reporter reporter(options, counters, activeCount, resumed, start, volume, done);
+  std::atomic<bool> cancelled{false};
+  const std::atomic<bool>* cancel = options.cancel;
+  auto isCancelled = [&] {
+    return cancelled.load(std::memory_order_relaxed) ||
+           (cancel && cancel->load(std::memory_order_relaxed));
+  };
+
+  const int maxBatches = int(std::min<int64_t>(settings.batches, settings.samplesPerProbe));
+  const bool adaptive = settings.targetRelError > 0;
+
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, todo.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t t = range.begin(); t != range.end(); ++t) {
+          if (isCancelled()) return;
+          const int64_t probe = todo[t];
+          const Vec3d p = localPosition(probe);
+          ProbeEstimate estimate(coeffs, maxBatches);
+
+          // Delta lights project exactly (SPEC 3): c_i += (I / d^2) V Y_i(w), once per probe.
+          TraceCounters exactCounters;
+          for (uint32_t light : lights.deltaLights()) {
+            LightSample s;
+            if (lights.EvalDelta(light, p, &s) &&
+                integrator.Unoccluded(Vec3f(p), s, &exactCounters))
+              estimate.AddExact(settings.shOrder, s.wi, s.radiance);
+          }
+          counters.Add(exactCounters);
+
+          // Batches run in rounds: all of them at once, or (adaptive) a first round of
+          // kMinAdaptiveBatches and then pairs until the error target is met. The rounds are fixed
+          // by the settings alone, so the result never depends on the thread count.
+          int next = 0;
+          while (next < maxBatches) {
+            const int roundEnd =
+                !adaptive ? maxBatches
+                          : std::min(maxBatches, next == 0 ? kMinAdaptiveBatches : next + 2);
+            tbb::parallel_for(next, roundEnd, [&](int b) {
+              const int64_t n = BatchSize(settings.samplesPerProbe, maxBatches, b);
+              if (!integrator.TraceBatch(p, uint64_t(probe), uint32_t(b), n, estimate.BatchSum(b),
+                                         &counters, cancel)) {
+                cancelled.store(true, std::memory_order_relaxed);
+              }
+              estimate.SetBatchSamples(b, n);
+            });
+            if (isCancelled()) return;
+            next = roundEnd;
+            if (adaptive && estimate.RelativeError(next) <= settings.targetRelError) break;
+          }
+          finisher.Finish(estimate, next, probe, &volume);
+          done[probe].store(1, std::memory_order_release);
+          reporter.ProbeDone(volume.stdError[probe]);
+        }
+      });
+
+  if (isCancelled()) {
+    reporter.Stop(/*checkpoint=*/true);
+    log->info("cancelled after {:.3f} s", Seconds(start));
+    return absl::CancelledError("bake cancelled");
+  }
+
+  volume.stats.wallSeconds = Seconds(start);
+  volume.stats.threads = threads;
+  volume.stats.probes = activeCount;
+  volume.stats.samples = counters.samples.load();
+  volume.stats.rays = counters.rays.load();
+  int64_t invalid = 0;
+  for (int64_t probe = 0; probe < probeCount; ++probe)
+    if (volume.active[probe] && volume.validity[probe] == 0.0f) ++invalid;
+  volume.stats.invalidProbes = invalid;
+  reporter.Stop(/*checkpoint=*/false);
+  log->info("baked {} probes in {:.3f} s: {} samples, {} rays ({:.2f} Mrays/s)", activeCount,
+            volume.stats.wallSeconds, volume.stats.samples, volume.stats.rays,
+            volume.stats.rays / std::max(volume.stats.wallSeconds, 1e-9) * 1e-6);
+  return volume;
+}
+
+}  // namespace
+
+absl::StatusOr<ProbeVolume> Bake(const BakeJob& job, const BakeOptions& options) {
+  PB_RETURN_IF_ERROR(CheckSettings(job));
+  const int threads =
+      options.threads > 0 ? options.threads : tbb::this_task_arena::max_concurrency();
+  tbb::task_arena arena(threads);
+  absl::StatusOr<ProbeVolume> result;
+  arena.execute([&] { result = BakeInArena(job, options, threads); });
+  return result;
+}
+
+}  // namespace probebake

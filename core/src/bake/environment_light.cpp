@@ -1,0 +1,153 @@
+#include "environment_light.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+#include "probebake/base/check.h"
+#include "probebake/math/frame.h"
+#include "probebake/sampling/warps.h"
+
+namespace probebake {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+// Continuous Imf::LatLongMap coordinates, relative to the data window origin:
+//   latitude(y) = pi (1/2 - y / (h - 1)),  longitude(x) = 2 pi (1/2 - x / (w - 1)),
+//   direction = (sin lon cos lat, sin lat, cos lon cos lat).
+// (Checked against the library in tests/bake/environment_light_test.cpp.)
+double LatitudeOf(double y, int h) {
+  return h > 1 ? kPi * (0.5 - y / (h - 1)) : 0.0;
+}
+double LongitudeOf(double x, int w) {
+  return w > 1 ? 2 * kPi * (0.5 - x / (w - 1)) : 0.0;
+}
+
+}  // namespace
+
+EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
+  switch (env.kind) {
+    case Environment::Kind::kNone:
+      return;
+    case Environment::Kind::kUniform:
+      uniform_ = env.radiance;
+      black_ = MaxComponent(uniform_) <= 0;
+      importance_ = kPi * Luminance(uniform_);
+      return;
+    case Environment::Kind::kMap:
+      break;
+  }
+  map_ = env.map;
+  PB_CHECK(map_ != nullptr);
+  PB_CHECK_GT(map_->width, 0);
+  PB_CHECK_GT(map_->height, 0);
+  worldFromMap_ = map_->worldFromMap;
+  mapFromWorld_ = Transpose(worldFromMap_);
+  const int w = map_->width, h = map_->height;
+  std::vector<double> weights(size_t(w) * h);
+  cellSolidAngle_.resize(weights.size());
+  double sum = 0;
+  for (int iy = 0; iy < h; ++iy) {
+    for (int ix = 0; ix < w; ++ix) {
+      const Cell c = CellBounds(ix, iy);
+      const double solidAngle = (c.lon1 - c.lon0) * (c.z1 - c.z0);
+      const size_t k = size_t(iy) * w + ix;
+      const float* rgb = &map_->rgb[3 * k];
+      const double lum = map_->scale * Luminance(Vec3d(rgb[0], rgb[1], rgb[2]));
+      cellSolidAngle_[k] = solidAngle;
+      weights[k] = std::max(0.0, lum) * solidAngle;
+      sum += weights[k];
+    }
+  }
+  black_ = !(sum > 0);
+  importance_ = sum / (4 * kPi) * kPi;
+  if (!black_) distribution_ = std::make_unique<PiecewiseConstant2D>(weights, h, w);
+}
+
+EnvironmentLight::Cell EnvironmentLight::CellBounds(int ix, int iy) const {
+  const int w = map_->width, h = map_->height;
+  Cell c;
+  if (w == 1) {
+    c.lon0 = -kPi, c.lon1 = kPi;
+  } else {
+    // Column ix covers x in [ix - 1/2, ix + 1/2] clipped to [0, w - 1]; longitude decreases with x.
+    const double x0 = std::max(0.0, ix - 0.5), x1 = std::min(double(w - 1), ix + 0.5);
+    c.lon0 = LongitudeOf(x1, w), c.lon1 = LongitudeOf(x0, w);
+  }
+  if (h == 1) {
+    c.z0 = -1, c.z1 = 1;
+  } else {
+    const double y0 = std::max(0.0, iy - 0.5), y1 = std::min(double(h - 1), iy + 0.5);
+    c.z0 = std::sin(LatitudeOf(y1, h)), c.z1 = std::sin(LatitudeOf(y0, h));
+  }
+  return c;
+}
+
+int EnvironmentLight::CellIndex(const Vec3d& d) const {
+  const int w = map_->width, h = map_->height;
+  int ix = 0, iy = 0;
+  if (w > 1) {
+    const double lon = std::atan2(d.x, d.z);
+    const double x = (0.5 - lon / (2 * kPi)) * (w - 1);
+    ix = std::clamp(int(std::lround(x)), 0, w - 1);
+  }
+  if (h > 1) {
+    const double lat = std::asin(std::clamp(d.y, -1.0, 1.0));
+    const double y = (0.5 - lat / kPi) * (h - 1);
+    iy = std::clamp(int(std::lround(y)), 0, h - 1);
+  }
+  return iy * w + ix;
+}
+
+Vec3d EnvironmentLight::Radiance(const Vec3d& wi) const {
+  if (black_) return {};
+  if (kind_ == Environment::Kind::kUniform) return uniform_;
+  const int k = CellIndex(mapFromWorld_ * wi);
+  const float* rgb = &map_->rgb[3 * size_t(k)];
+  return Vec3d(rgb[0], rgb[1], rgb[2]) * map_->scale;
+}
+
+Vec3d EnvironmentLight::Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double* pdf) const {
+  *pdf = 0;
+  if (black_) return {};
+  if (kind_ == Environment::Kind::kUniform) {
+    if (n) {
+      const Vec3d local = SampleCosineHemisphere(u);
+      *wi = Framed::FromZ(*n).FromLocal(local);
+      *pdf = CosineHemispherePdf(local.z);
+    } else {
+      *wi = SampleUniformSphere(u);
+      *pdf = UniformSpherePdf();
+    }
+    return *pdf > 0 ? uniform_ : Vec3d{};
+  }
+  const PiecewiseConstant2DSample s = distribution_->Sample(u);
+  const int ix = int(s.col), iy = int(s.row);
+  const double pmf = s.pmf;
+  const Vec2d uCell = s.uRemapped;
+  const size_t k = size_t(iy) * map_->width + ix;
+  const Cell c = CellBounds(ix, iy);
+  // Uniform in solid angle inside the cell: longitude and sin(latitude) uniform.
+  const double lon = c.lon0 + uCell.x * (c.lon1 - c.lon0);
+  const double z = c.z0 + uCell.y * (c.z1 - c.z0);
+  const double r = std::sqrt(std::max(0.0, (1 - z) * (1 + z)));
+  const Vec3d mapDir{r * std::sin(lon), z, r * std::cos(lon)};
+  *wi = worldFromMap_ * mapDir;
+  *pdf = pmf / cellSolidAngle_[k];
+  const float* rgb = &map_->rgb[3 * k];
+  return Vec3d(rgb[0], rgb[1], rgb[2]) * map_->scale;
+}
+
+double EnvironmentLight::Pdf(const Vec3d& wi, const Vec3d* n) const {
+  if (black_) return 0;
+  if (kind_ == Environment::Kind::kUniform) {
+    if (n) return CosineHemispherePdf(std::max(0.0, Dot(wi, *n)));
+    return UniformSpherePdf();
+  }
+  const int k = CellIndex(mapFromWorld_ * wi);
+  const int iy = k / map_->width, ix = k % map_->width;
+  return distribution_->Pmf(iy, ix) / cellSolidAngle_[k];
+}
+
+}  // namespace probebake

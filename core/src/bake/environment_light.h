@@ -1,0 +1,58 @@
+// The environment (radiance from infinitely far away): uniform or a lat-long HDR map, evaluated and
+// importance-sampled by direction.
+//
+// A map is a piecewise-constant function on the sphere: direction -> the pixel nearest to its
+// continuous Imf::LatLongMap position (+Y up, longitude 0 toward +Z, pi/2 toward +X, first and last
+// columns at longitude +pi and -pi, first and last rows at the poles). Pixel cells are therefore
+// bands in longitude and latitude, half-size at the image edges, with exact solid angles
+// dlon * (sin latTop - sin latBottom). Sampling picks a cell with probability proportional to
+// luminance * solid angle, then a direction uniform in solid angle inside the cell, so the pdf is
+// exactly constant on each cell and radiance / pdf is nearly constant: the estimator's variance
+// comes from visibility and cosines, not from the map.
+#pragma once
+
+#include <memory>
+#include <vector>
+
+#include "probebake/math/mat3.h"
+#include "probebake/math/vec3.h"
+#include "probebake/sampling/distribution.h"
+#include "probebake/scene/scene.h"
+
+namespace probebake {
+
+class EnvironmentLight {
+ public:
+  explicit EnvironmentLight(const Environment& env);
+
+  bool IsBlack() const { return black_; }
+  // Radiance arriving from direction wi (unit, pointing from the scene toward the sky).
+  Vec3d Radiance(const Vec3d& wi) const;
+  // Samples a direction: proportional to luminance x solid angle for a map; for a uniform
+  // environment cosine-weighted about n when a surface normal is given, else uniform. Returns the
+  // radiance from wi; pdf per steradian (0 when nothing can be sampled).
+  Vec3d Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double* pdf) const;
+  double Pdf(const Vec3d& wi, const Vec3d* n) const;
+  // Mean luminance over the sphere times pi: the irradiance a surface would get from an
+  // unoccluded hemisphere of average sky (the light's selection importance).
+  double Importance() const { return importance_; }
+
+ private:
+  struct Cell {
+    double lon0, lon1;  // longitude range (lon0 < lon1)
+    double z0, z1;      // sin(latitude) range (z0 < z1)
+  };
+  int CellIndex(const Vec3d& mapDir) const;
+  Cell CellBounds(int ix, int iy) const;
+
+  Environment::Kind kind_;
+  bool black_ = true;
+  Vec3d uniform_;
+  std::shared_ptr<const EnvironmentMap> map_;
+  Mat3d worldFromMap_, mapFromWorld_;
+  std::vector<double> cellSolidAngle_;  // per pixel
+  std::unique_ptr<PiecewiseConstant2D> distribution_;
+  double importance_ = 0;
+};
+
+}  // namespace probebake

@@ -1,0 +1,439 @@
+#include "light_set.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <variant>
+
+#include "probebake/base/check.h"
+#include "probebake/math/frame.h"
+#include "probebake/sampling/spherical_rectangle.h"
+#include "probebake/sampling/warps.h"
+
+namespace probebake {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+double SmoothStep(double x, double a, double b) {
+  if (a == b) return x < a ? 0 : 1;
+  const double t = std::clamp((x - a) / (b - a), 0.0, 1.0);
+  return t * t * (3 - 2 * t);
+}
+
+// True when every corner of the box lies on or below the plane through p with normal n.
+bool BoxBelow(const Vec3d& lo, const Vec3d& hi, const Vec3d& p, const Vec3d& n) {
+  for (int k = 0; k < 8; ++k) {
+    const Vec3d c{(k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z};
+    if (Dot(c - p, n) > 0) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+LightSet::LightSet(const Scene& scene, const TracerScene& tracer)
+    : scene_(&scene), tracer_(&tracer) {
+  const Vec3d& offset = tracer.offset();
+  for (uint32_t i = 0; i < scene.lights.size(); ++i) {
+    LightData l{};
+    const Light& light = scene.lights[i];
+    if (const auto* p = std::get_if<PointLight>(&light)) {
+      l.kind = Kind::kPoint;
+      l.position = p->position - offset;
+      l.radiance = p->intensity;
+    } else if (const auto* s = std::get_if<SpotLight>(&light)) {
+      l.kind = Kind::kSpot;
+      l.position = s->position - offset;
+      l.axis = s->direction;
+      l.radiance = s->intensity;
+      l.cosInner = s->cosInner;
+      l.cosOuter = s->cosOuter;
+    } else if (const auto* d = std::get_if<DirectionalLight>(&light)) {
+      l.axis = -d->direction;
+      if (d->cosHalfAngle >= 1) {
+        l.kind = Kind::kDirectional;
+        l.radiance = d->irradiance;
+      } else {
+        // A disk of uniform radiance L and angular radius theta gives E = L pi sin^2(theta) on a
+        // surface facing it.
+        l.kind = Kind::kSun;
+        l.cosOuter = d->cosHalfAngle;
+        l.oneMinusCos = 1 - d->cosHalfAngle;
+        const double sin2 = l.oneMinusCos * (1 + d->cosHalfAngle);
+        l.radiance = d->irradiance / (kPi * sin2);
+      }
+    } else if (const auto* r = std::get_if<RectLight>(&light)) {
+      l.kind = Kind::kRect;
+      l.position = r->corner - offset;
+      l.edge1 = r->edge1;
+      l.edge2 = r->edge2;
+      const Vec3d c = Cross(r->edge1, r->edge2);
+      l.area = Length(c);
+      l.axis = c / l.area;
+      l.radiance = r->radiance;
+      l.twoSided = r->twoSided;
+      // Orthogonal edges (to rounding): sampled by solid angle.
+      l.rectangular =
+          std::abs(Dot(r->edge1, r->edge2)) <= 1e-12 * Length(r->edge1) * Length(r->edge2);
+    } else if (const auto* k = std::get_if<DiskLight>(&light)) {
+      l.kind = Kind::kDisk;
+      l.position = k->center - offset;
+      l.axis = k->normal;
+      l.radius = k->radius;
+      l.area = kPi * k->radius * k->radius;
+      l.radiance = k->radiance;
+      l.twoSided = k->twoSided;
+    } else if (const auto* sp = std::get_if<SphereLight>(&light)) {
+      l.kind = Kind::kSphere;
+      l.position = sp->center - offset;
+      l.radius = sp->radius;
+      l.area = 4 * kPi * sp->radius * sp->radius;
+      l.radiance = sp->radiance;
+    }
+    l.power = Luminance(l.radiance);
+    lights_.push_back(l);
+    if (l.kind == Kind::kPoint || l.kind == Kind::kSpot || l.kind == Kind::kDirectional)
+      deltaLights_.push_back(i);
+    if (l.kind == Kind::kSun) distantLights_.push_back(i);
+  }
+
+  meshLight_.assign(scene.meshes.size(), UINT32_MAX);
+  for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
+    const TriangleMesh& mesh = scene.meshes[m];
+    const Vec3d& emission = scene.materials[mesh.material].emission;
+    if (MaxComponent(emission) <= 0 || mesh.TriangleCount() == 0) continue;
+    LightData l{};
+    l.kind = Kind::kMesh;
+    l.mesh = m;
+    l.radiance = emission;
+    l.power = Luminance(emission);
+    l.boundsMin = {kInf, kInf, kInf};
+    l.boundsMax = {-kInf, -kInf, -kInf};
+    std::vector<double> areas(mesh.TriangleCount());
+    for (size_t t = 0; t < mesh.TriangleCount(); ++t) {
+      const Vec3d& a = mesh.positions[mesh.indices[3 * t]];
+      const Vec3d& b = mesh.positions[mesh.indices[3 * t + 1]];
+      const Vec3d& c = mesh.positions[mesh.indices[3 * t + 2]];
+      areas[t] = 0.5 * Length(Cross(b - a, c - a));
+      l.area += areas[t];
+      for (const Vec3d* v : {&a, &b, &c}) {
+        l.boundsMin = Min(l.boundsMin, *v - offset);
+        l.boundsMax = Max(l.boundsMax, *v - offset);
+      }
+    }
+    if (!(l.area > 0)) continue;
+    l.position = (l.boundsMin + l.boundsMax) * 0.5;
+    l.radius = 0.5 * Length(l.boundsMax - l.boundsMin);
+    meshLight_[m] = uint32_t(lights_.size());
+    triangleDistribution_.resize(lights_.size() + 1);
+    triangleDistribution_.back() = std::make_unique<DiscreteDistribution>(areas);
+    lights_.push_back(l);
+  }
+
+  environment_ = std::make_unique<EnvironmentLight>(scene.environment);
+  if (!environment_->IsBlack()) {
+    LightData l{};
+    l.kind = Kind::kEnv;
+    l.power = environment_->Importance();
+    envLight_ = uint32_t(lights_.size());
+    distantLights_.push_back(envLight_);
+    lights_.push_back(l);
+  }
+  triangleDistribution_.resize(lights_.size());
+}
+
+bool LightSet::UseSolidAngleSampling(const LightData& l, const Vec3d& p) const {
+  // Solid-angle sampling needs a true rectangle; below ~1e-6 sr its solid angle loses precision
+  // (spherical_rectangle.h) and area sampling is as good there anyway (the light is far and small).
+  constexpr double kMinSolidAngle = 1e-6;
+  return l.rectangular &&
+         SphericalRectangleSolidAngle(p, l.position, l.edge1, l.edge2) >= kMinSolidAngle;
+}
+
+double LightSet::SpotFalloff(const LightData& l, const Vec3d& wFromLight) const {
+  return SmoothStep(Dot(wFromLight, l.axis), l.cosOuter, l.cosInner);
+}
+
+double LightSet::LightImportance(const LightData& l, const Vec3d& p, const Vec3d* n) const {
+  if (l.power <= 0) return 0;
+  switch (l.kind) {
+    case Kind::kPoint:
+    case Kind::kSpot: {
+      const Vec3d v = l.position - p;
+      const double d2 = LengthSquared(v);
+      if (n && Dot(v, *n) <= 0) return 0;
+      double falloff = 1;
+      if (l.kind == Kind::kSpot) {
+        if (!(d2 > 0)) return 0;
+        falloff = SpotFalloff(l, -v / std::sqrt(d2));
+      }
+      return l.power * falloff / std::max(d2, 1e-300);
+    }
+    case Kind::kDirectional:
+      if (n && Dot(l.axis, *n) <= 0) return 0;
+      return l.power;
+    case Kind::kSun: {
+      // E = L pi sin^2: importance in irradiance units like the others. The cap is wholly below
+      // the tangent plane when its axis is more than 90 degrees + its radius from n.
+      const double sin2 = l.oneMinusCos * (1 + l.cosOuter);
+      if (n && Dot(l.axis, *n) <= -std::sqrt(sin2)) return 0;
+      return l.power * kPi * sin2;
+    }
+    case Kind::kRect: {
+      if (!l.twoSided && Dot(p - l.position, l.axis) <= 0) return 0;
+      if (n) {
+        const Vec3d c[4] = {l.position, l.position + l.edge1, l.position + l.edge1 + l.edge2,
+                            l.position + l.edge2};
+        bool below = true;
+        for (const Vec3d& q : c) below = below && Dot(q - p, *n) <= 0;
+        if (below) return 0;
+      }
+      const Vec3d centre = l.position + (l.edge1 + l.edge2) * 0.5;
+      return l.power * l.area / std::max(LengthSquared(centre - p), l.area);
+    }
+    case Kind::kDisk: {
+      if (!l.twoSided && Dot(p - l.position, l.axis) <= 0) return 0;
+      if (n && Dot(l.position - p, *n) <= -l.radius) return 0;
+      return l.power * l.area / std::max(LengthSquared(l.position - p), l.area);
+    }
+    case Kind::kSphere: {
+      const double d2 = LengthSquared(l.position - p);
+      if (d2 <= l.radius * l.radius) return 0;  // inside: the surface emits outward only
+      if (n && Dot(l.position - p, *n) <= -l.radius) return 0;
+      const double disk = kPi * l.radius * l.radius;
+      return l.power * disk / std::max(d2, disk);
+    }
+    case Kind::kMesh: {
+      if (n && BoxBelow(l.boundsMin, l.boundsMax, p, *n)) return 0;
+      return l.power * l.area / std::max(LengthSquared(l.position - p), l.area);
+    }
+    case Kind::kEnv:
+      return l.power;
+  }
+  return 0;
+}
+
+double LightSet::Importance(const Vec3d& p, const Vec3d* n, bool includeDelta,
+                            std::span<double> importance) const {
+  PB_DCHECK_EQ(importance.size(), lights_.size());
+  double total = 0;
+  for (size_t i = 0; i < lights_.size(); ++i) {
+    const LightData& l = lights_[i];
+    const bool delta =
+        l.kind == Kind::kPoint || l.kind == Kind::kSpot || l.kind == Kind::kDirectional;
+    importance[i] = (delta && !includeDelta) ? 0 : LightImportance(l, p, n);
+    total += importance[i];
+  }
+  return total;
+}
+
+bool LightSet::Sample(const Vec3d& p, const Vec3d* n, std::span<const double> importance,
+                      double total, double uSelect, const Vec2d& u, LightSample* sample) const {
+  if (!(total > 0)) return false;
+  // Linear scan: the importance array is rebuilt at every vertex anyway.
+  const double target = uSelect * total;
+  double cdf = 0;
+  size_t chosen = lights_.size();
+  for (size_t i = 0; i < lights_.size(); ++i) {
+    if (importance[i] <= 0) continue;
+    chosen = i;
+    if (target < cdf + importance[i]) break;
+    cdf += importance[i];
+  }
+  if (chosen == lights_.size()) return false;
+  const double pmf = importance[chosen] / total;
+  if (!SampleOne(lights_[chosen], uint32_t(chosen), p, n, u, sample)) return false;
+  sample->pdf *= pmf;
+  sample->light = uint32_t(chosen);
+  return sample->pdf > 0;
+}
+
+bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, const Vec3d* n,
+                         const Vec2d& u, LightSample* s) const {
+  s->delta = false;
+  switch (l.kind) {
+    case Kind::kPoint:
+    case Kind::kSpot:
+    case Kind::kDirectional:
+      return EvalDelta(index, p, s);
+    case Kind::kSun: {
+      const Vec3d local = SampleUniformCone(u, l.cosOuter);
+      s->wi = Framed::FromZ(l.axis).FromLocal(local);
+      s->distance = kInf;
+      s->radiance = l.radiance;
+      s->pdf = UniformConePdf(l.cosOuter);
+      return true;
+    }
+    case Kind::kRect:
+    case Kind::kDisk: {
+      Vec3d q;
+      if (l.kind == Kind::kRect && UseSolidAngleSampling(l, p)) {
+        const SphericalRectangleSample r =
+            SampleSphericalRectangle(u, p, l.position, l.edge1, l.edge2);
+        if (!(r.pdf > 0)) return false;
+        const Vec3d v = r.p - p;
+        const double d = Length(v);
+        if (!(d > 0)) return false;
+        s->wi = v / d;
+        const double cosLight = -Dot(s->wi, l.axis);
+        if ((cosLight <= 0 && !l.twoSided) || cosLight == 0) return false;
+        s->distance = d;
+        s->point = r.p;
+        s->radiance = l.radiance;
+        s->pdf = r.pdf;
+        return true;
+      }
+      if (l.kind == Kind::kRect) {
+        q = SampleUniformParallelogram(u, l.position, l.edge1, l.edge2);
+      } else {
+        const Vec2d d = SampleUniformDiskConcentric(u);
+        const Framed f = Framed::FromZ(l.axis);
+        q = l.position + (f.s * d.x + f.t * d.y) * l.radius;
+      }
+      const Vec3d v = q - p;
+      const double d2 = LengthSquared(v);
+      if (!(d2 > 0)) return false;
+      const double d = std::sqrt(d2);
+      s->wi = v / d;
+      const double cosLight = -Dot(s->wi, l.axis);
+      if (cosLight <= 0 && !l.twoSided) return false;
+      if (cosLight == 0) return false;
+      s->distance = d;
+      s->point = q;
+      s->radiance = l.radiance;
+      s->pdf = d2 / (l.area * std::abs(cosLight));
+      return true;
+    }
+    case Kind::kSphere: {
+      const Vec3d toCentre = l.position - p;
+      const double dc2 = LengthSquared(toCentre);
+      const double r2 = l.radius * l.radius;
+      if (dc2 <= r2) return false;
+      const double dc = std::sqrt(dc2);
+      const double sin2 = r2 / dc2;
+      const double cosMax = std::sqrt(std::max(0.0, 1 - sin2));
+      const Vec3d axis = toCentre / dc;
+      const Vec3d local = SampleUniformCone(u, cosMax);
+      s->wi = Framed::FromZ(axis).FromLocal(local);
+      // Nearest intersection with the sphere; at the silhouette rounding may leave the
+      // discriminant slightly negative: take the tangent point.
+      const double b = Dot(toCentre, s->wi);
+      const double disc = r2 - (dc2 - b * b);
+      s->distance = b - std::sqrt(std::max(0.0, disc));
+      s->point = p + s->wi * s->distance;
+      s->radiance = l.radiance;
+      s->pdf = UniformConePdf(cosMax);
+      return true;
+    }
+    case Kind::kMesh: {
+      const DiscreteSample pick = triangleDistribution_[index]->Sample(u.x);
+      const size_t t = size_t(pick.index);
+      const double uRemapped = pick.uRemapped;
+      const TriangleMesh& mesh = scene_->meshes[l.mesh];
+      const Vec3d& offset = tracer_->offset();
+      const Vec3d a = mesh.positions[mesh.indices[3 * t]] - offset;
+      const Vec3d b = mesh.positions[mesh.indices[3 * t + 1]] - offset;
+      const Vec3d c = mesh.positions[mesh.indices[3 * t + 2]] - offset;
+      const std::array<double, 3> bary = SampleUniformTriangle({uRemapped, u.y});
+      const Vec3d q = a * bary[0] + b * bary[1] + c * bary[2];
+      const Vec3d v = q - p;
+      const double d2 = LengthSquared(v);
+      if (!(d2 > 0)) return false;
+      const double d = std::sqrt(d2);
+      s->wi = v / d;
+      const Vec3d ng = Vec3d(tracer_->TriangleNormal(l.mesh, uint32_t(t)));
+      const double cosLight = -Dot(s->wi, ng);
+      if (cosLight <= 0) return false;  // emissive triangles emit from their front side only
+      s->distance = d;
+      s->point = q;
+      s->radiance = l.radiance;
+      // pmf(t) = area_t / area; uniform on t: 1 / area_t; together 1 / area.
+      s->pdf = d2 / (l.area * cosLight);
+      return true;
+    }
+    case Kind::kEnv: {
+      s->radiance = environment_->Sample(u, n, &s->wi, &s->pdf);
+      s->distance = kInf;
+      return s->pdf > 0 && MaxComponent(s->radiance) > 0;
+    }
+  }
+  return false;
+}
+
+bool LightSet::EvalDelta(uint32_t index, const Vec3d& p, LightSample* s) const {
+  const LightData& l = lights_[index];
+  s->delta = true;
+  s->light = index;
+  s->pdf = 1;
+  if (l.kind == Kind::kDirectional) {
+    s->wi = l.axis;
+    s->distance = kInf;
+    s->radiance = l.radiance;
+    return true;
+  }
+  const Vec3d v = l.position - p;
+  const double d2 = LengthSquared(v);
+  if (!(d2 > 0)) return false;
+  const double d = std::sqrt(d2);
+  s->wi = v / d;
+  s->distance = d;
+  s->point = l.position;
+  double falloff = 1;
+  if (l.kind == Kind::kSpot) falloff = SpotFalloff(l, -s->wi);
+  if (falloff <= 0) return false;
+  s->radiance = l.radiance * (falloff / d2);
+  return true;
+}
+
+bool LightSet::EvalSurfaceHit(const Vec3d& p, const Vec3d* n, std::span<const double> importance,
+                              double total, const Vec3d& wi, const SurfaceHit& hit,
+                              LightHit* out) const {
+  uint32_t index = UINT32_MAX;
+  if (hit.kind == SurfaceKind::kMesh) {
+    index = meshLight_[hit.index];
+    if (index == UINT32_MAX) return false;
+  } else {
+    index = hit.index;
+  }
+  const LightData& l = lights_[index];
+  out->light = index;
+  out->radiance = l.radiance;
+  const double pmf = total > 0 ? importance[index] / total : 0;
+  const double d2 = hit.t * hit.t;
+  switch (l.kind) {
+    case Kind::kRect:
+    case Kind::kDisk: {
+      const double cosLight = -Dot(wi, l.axis);
+      if (cosLight <= 0 && !l.twoSided) return false;
+      if (l.kind == Kind::kRect && UseSolidAngleSampling(l, p)) {
+        out->pdf = pmf * SphericalRectanglePdf(p, l.position, l.edge1, l.edge2);
+      } else {
+        out->pdf = cosLight != 0 ? pmf * d2 / (l.area * std::abs(cosLight)) : 0;
+      }
+      return true;
+    }
+    case Kind::kSphere: {
+      const Vec3d toCentre = l.position - p;
+      const double dc2 = LengthSquared(toCentre);
+      const double r2 = l.radius * l.radius;
+      if (dc2 <= r2) return false;
+      const double cosMax = std::sqrt(std::max(0.0, 1 - r2 / dc2));
+      out->pdf = pmf * UniformConePdf(cosMax);
+      return true;
+    }
+    case Kind::kMesh: {
+      const double cosLight = -Dot(wi, hit.ng);
+      if (cosLight <= 0) return false;
+      out->pdf = pmf * d2 / (l.area * cosLight);
+      return true;
+    }
+    default:
+      PB_CHECK(false);
+  }
+  (void)n;
+  return false;
+}
+
+}  // namespace probebake

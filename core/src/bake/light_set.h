@@ -1,0 +1,160 @@
+// Every emitter of a scene, for next-event estimation: sampling a direction toward one emitter at a
+// shading point, the solid-angle pdf of that choice (for multiple importance sampling against
+// direction sampling), and the radiance of emitters found by rays.
+//
+// Emitters ("lights" below) are, in this order: the scene's lights (index = Scene::lights index),
+// one light per emissive mesh, and the environment when it is not black. A light is chosen with
+// probability proportional to an importance computed at the shading point: a cheap estimate of the
+// irradiance it could deliver there (luminance x area / distance^2 for finite lights, luminance
+// x pi for the environment), exactly zero only where the light cannot contribute (behind a
+// one-sided emitter, or wholly below the surface's tangent plane). Any positive importance keeps
+// the estimator unbiased; a good one lowers variance. The same importance, recomputed at the same
+// point, gives the pdf that MIS needs when a sampled direction hits a light.
+//
+// Units: pdfs per steradian and include the selection probability; for delta lights `pdf` is the
+// selection probability alone and `radiance` is the delta's weight (I / d^2 for point lights, E for
+// directional ones). Positions are the tracer's local coordinates (tracer_scene.h).
+#pragma once
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "environment_light.h"
+#include "probebake/math/vec3.h"
+#include "probebake/scene/scene.h"
+#include "tracer_scene.h"
+
+namespace probebake {
+
+struct LightSample {
+  Vec3d wi;             // unit, from the shading point toward the light
+  double distance = 0;  // to the sampled point; infinity for distant lights
+  Vec3d point;          // the sampled point (local), when `distance` is finite
+  Vec3d radiance;       // arriving along -wi
+  double pdf = 0;       // per steradian, selection included (delta: selection pmf)
+  bool delta = false;
+  uint32_t light = 0;  // which light
+};
+
+// A light a ray reached: an area light's surface, an emissive triangle, or the sky.
+struct LightHit {
+  uint32_t light = 0;
+  Vec3d radiance;  // emitted toward the ray's origin
+  double pdf = 0;  // the pdf NEE would have had for this direction at the ray's origin
+};
+
+class LightSet {
+ public:
+  LightSet(const Scene& scene, const TracerScene& tracer);
+
+  // Number of lights (the size of an importance array).
+  size_t Count() const { return lights_.size(); }
+  bool Empty() const { return lights_.empty(); }
+
+  // Selection importance of every light at local point p; n is the unit normal of the surface
+  // being shaded, oriented to the side the light must reach, or nullptr at a probe (no surface).
+  // Delta lights are left out (importance 0) when `includeDelta` is false: the probe projects
+  // them exactly. Returns the sum.
+  double Importance(const Vec3d& p, const Vec3d* n, bool includeDelta,
+                    std::span<double> importance) const;
+
+  // Picks a light by `importance` (sum `total` > 0) with uSelect and samples it with u.
+  // Returns false when the chosen light cannot light p (the sample then contributes nothing).
+  bool Sample(const Vec3d& p, const Vec3d* n, std::span<const double> importance, double total,
+              double uSelect, const Vec2d& u, LightSample* sample) const;
+
+  // A ray from p (normal n as above, importance as computed there) along wi hit `hit`: the
+  // emitted radiance toward p and NEE's pdf of that direction. False if the surface hit emits
+  // nothing (not a light, or its back side).
+  bool EvalSurfaceHit(const Vec3d& p, const Vec3d* n, std::span<const double> importance,
+                      double total, const Vec3d& wi, const SurfaceHit& hit, LightHit* out) const;
+
+  // A ray from p along wi escaped the scene: adds every distant light's radiance from wi, each
+  // with its own NEE pdf, through `visit(const LightHit&)`.
+  template <typename Visit>
+  void ForEachEscaped(const Vec3d* n, std::span<const double> importance, double total,
+                      const Vec3d& wi, Visit&& visit) const;
+
+  // Delta lights (point, spot, zero-size directional), for the probe's exact projection.
+  // Radiance weight and direction of delta light `light` at p: false if it cannot reach p.
+  bool EvalDelta(uint32_t light, const Vec3d& p, LightSample* sample) const;
+  const std::vector<uint32_t>& deltaLights() const { return deltaLights_; }
+
+  // Radiance of the environment alone (escaped rays with no MIS, e.g. the naive estimator).
+  const EnvironmentLight* environment() const { return environment_.get(); }
+  // Index of the emissive-mesh light of mesh m, or UINT32_MAX when the mesh does not emit.
+  uint32_t MeshLight(uint32_t mesh) const { return meshLight_[mesh]; }
+
+ private:
+  enum class Kind : uint8_t {
+    kPoint,
+    kSpot,
+    kDirectional,
+    kSun,
+    kRect,
+    kDisk,
+    kSphere,
+    kMesh,
+    kEnv
+  };
+  struct LightData {
+    Kind kind;
+    Vec3d radiance;  // area lights, sun disk: emitted radiance; point/spot: intensity;
+                     // directional: irradiance; mesh: emission
+    Vec3d position;  // point/spot; rect corner; disk/sphere centre; mesh bounds centre
+    Vec3d axis;      // spot: travel direction; directional/sun: toward the light; rect/disk: normal
+    Vec3d edge1, edge2;                 // rect
+    double radius = 0;                  // disk, sphere; mesh: bounding radius
+    double area = 0;                    // rect, disk, mesh (total)
+    double cosInner = 1, cosOuter = 0;  // spot; sun: cosOuter = cos of the angular radius
+    double oneMinusCos = 0;             // sun: 1 - cos(angular radius), without cancellation
+    bool twoSided = false;
+    bool rectangular = false;  // rect with orthogonal edges
+    double power = 0;          // luminance of `radiance`
+    uint32_t mesh = 0;
+    Vec3d boundsMin, boundsMax;  // mesh
+  };
+
+  double LightImportance(const LightData& l, const Vec3d& p, const Vec3d* n) const;
+  bool SampleOne(const LightData& l, uint32_t index, const Vec3d& p, const Vec3d* n, const Vec2d& u,
+                 LightSample* s) const;
+  double SpotFalloff(const LightData& l, const Vec3d& wFromLight) const;
+  bool UseSolidAngleSampling(const LightData& l, const Vec3d& p) const;
+
+  const Scene* scene_;
+  const TracerScene* tracer_;
+  std::vector<LightData> lights_;
+  std::vector<uint32_t> deltaLights_;
+  std::vector<uint32_t> distantLights_;  // suns and the environment
+  std::vector<uint32_t> meshLight_;
+  // Per emissive mesh light: triangle selection by area.
+  std::vector<std::unique_ptr<DiscreteDistribution>> triangleDistribution_;
+  std::unique_ptr<EnvironmentLight> environment_;
+  uint32_t envLight_ = UINT32_MAX;
+};
+
+template <typename Visit>
+void LightSet::ForEachEscaped(const Vec3d* n, std::span<const double> importance, double total,
+                              const Vec3d& wi, Visit&& visit) const {
+  for (uint32_t index : distantLights_) {
+    const LightData& l = lights_[index];
+    LightHit hit;
+    hit.light = index;
+    if (l.kind == Kind::kSun) {
+      if (Dot(wi, l.axis) < l.cosOuter) continue;
+      hit.radiance = l.radiance;
+      hit.pdf =
+          total > 0 ? importance[index] / total / (2 * 3.14159265358979323846 * l.oneMinusCos) : 0;
+    } else {
+      hit.radiance = environment_->Radiance(wi);
+      if (MaxComponent(hit.radiance) <= 0) continue;
+      hit.pdf = total > 0 ? importance[index] / total * environment_->Pdf(wi, n) : 0;
+    }
+    visit(hit);
+  }
+}
+
+}  // namespace probebake

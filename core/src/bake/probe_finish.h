@@ -1,0 +1,72 @@
+// From sample sums to a stored probe: the mean SH coefficients, the standard error from the
+// independent batches, irradiance and its window (SPEC 2, 3).
+//
+// Error estimate: batch b is an independent randomisation (its own scrambled Sobol stream, or its
+// own random numbers) of n_b samples with sum S_b, so its mean m_b = S_b / n_b is an unbiased,
+// independent estimate. The probe's estimate is the pooled mean m = sum S_b / N (N = sum n_b) and
+//   Var(m) ~= B / (B - 1) * sum_b (n_b / N)^2 (m_b - m)^2,
+// which is the textbook s^2 / B for equal batches. The stored std_error is sqrt(Var) / |m| of the
+// luminance of the L0 coefficient (exact delta-light terms add to m and not to the variance).
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "probebake/bake/probe_volume.h"
+#include "probebake/math/vec3.h"
+#include "probebake/scene/scene.h"
+
+namespace probebake {
+
+class ProbeEstimate {
+ public:
+  ProbeEstimate(int coeffCount, int maxBatches);
+
+  // The running sum of batch b: coeffCount x 3 doubles, coefficient-major RGB.
+  std::span<double> BatchSum(int b) {
+    return {sums_.data() + size_t(b) * 3 * coeffs_, size_t(3 * coeffs_)};
+  }
+  void SetBatchSamples(int b, int64_t n) { counts_[b] = n; }
+  // Adds an exactly known term radiance * Y(wi) (a delta light seen from the probe).
+  void AddExact(int order, const Vec3d& wi, const Vec3d& radiance);
+
+  int64_t Samples(int batches) const;
+  // Pooled mean of the first `batches` batches plus the exact part: coeffCount x 3 doubles.
+  std::vector<double> Mean(int batches) const;
+  // Standard error of every coefficient and channel (coeffCount x 3), same estimator as below.
+  std::vector<double> CoefficientErrors(int batches) const;
+  // Relative standard error of luminance(L0) from the first `batches` batches; +infinity with
+  // fewer than 2 batches, 0 for a black probe.
+  double RelativeError(int batches) const;
+
+ private:
+  int coeffs_;
+  std::vector<double> sums_;  // maxBatches x coeffs x 3
+  std::vector<int64_t> counts_;
+  std::vector<double> exact_;  // coeffs x 3
+};
+
+class ProbeFinisher {
+ public:
+  explicit ProbeFinisher(const BakeSettings& settings);
+  // The window as recorded in the file's sh_window metadata.
+  std::string WindowName() const;
+  // Stores the estimate of the first `batches` batches as probe `probe` of `volume` (radiance,
+  // irradiance and window when requested, std_error, sample_count).
+  void Finish(const ProbeEstimate& estimate, int batches, int64_t probe, ProbeVolume* volume) const;
+
+ private:
+  const BakeSettings& settings_;
+  std::vector<double> windowFactors_;  // HANNING, LANCZOS: per band
+};
+
+// A volume with the layout of `v` (grid, order, active mask, validity, window, planes) whose
+// per-probe values are all zero.
+ProbeVolume EmptyLike(const ProbeVolume& v);
+
+// Copies every per-probe value of `probe` from one volume to another of the same layout.
+void CopyProbe(const ProbeVolume& from, int64_t probe, ProbeVolume* to);
+
+}  // namespace probebake

@@ -1,0 +1,201 @@
+#include "probe_integrator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "probebake/math/frame.h"
+#include "probebake/sampling/hash.h"
+#include "probebake/sampling/sampler.h"
+#include "probebake/sampling/warps.h"
+#include "probebake/sh/sh_basis.h"
+#include "ray_offset.h"
+
+namespace probebake {
+namespace {
+
+constexpr double kInvPi = std::numbers::inv_pi;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// sum[3 i + c] += Y_i(w) value[c].
+void Project(int order, const Vec3d& w, const Vec3d& value, std::span<double> sum) {
+  double y[kMaxShCoeffCount];
+  EvalShBasis(order, w, y);
+  const int n = ShCoeffCount(order);
+  for (int i = 0; i < n; ++i) {
+    sum[3 * i] += y[i] * value.x;
+    sum[3 * i + 1] += y[i] * value.y;
+    sum[3 * i + 2] += y[i] * value.z;
+  }
+}
+
+double BalanceHeuristic(double pdfA, double pdfB) {
+  return pdfA / (pdfA + pdfB);
+}
+
+}  // namespace
+
+ProbeIntegrator::ProbeIntegrator(const Scene& scene, const TracerScene& tracer,
+                                 const LightSet& lights, const BakeSettings& settings)
+    : scene_(scene), tracer_(tracer), lights_(lights), settings_(settings) {
+  switch (settings.estimator) {
+    case Estimator::kNeeMis:
+      lightSampling_ = true, countEmission_ = true, mis_ = true;
+      break;
+    case Estimator::kLightSampling:
+      lightSampling_ = true, countEmission_ = false, mis_ = false;
+      break;
+    case Estimator::kDirectionSampling:
+      lightSampling_ = false, countEmission_ = true, mis_ = false;
+      break;
+  }
+}
+
+bool ProbeIntegrator::Unoccluded(const Vec3f& origin, const LightSample& s,
+                                 TraceCounters* counters) const {
+  ++counters->rays;
+  if (!std::isfinite(s.distance)) return !tracer_.Occluded(origin, s.wi, kInf);
+  // Aim from the ray's actual origin (offset off its surface, not the shading point itself) at
+  // the sampled point, and stop short of the light's own surface by the float error of the
+  // coordinates involved: otherwise grazing shadow rays end beyond the light and hit it.
+  const Vec3d o(origin);
+  const Vec3d v = s.point - o;
+  const double d = Length(v);
+  const double maxAbs = std::max(MaxComponent(Abs(o)), MaxComponent(Abs(s.point)));
+  const double tMax = d - FloatSlack(maxAbs);
+  if (tMax <= 0) return true;
+  return !tracer_.Occluded(origin, v / d, tMax);
+}
+
+bool ProbeIntegrator::TraceBatch(const Vec3d& p, uint64_t probe, uint32_t batch, int64_t count,
+                                 std::span<double> sum, SharedCounters* shared,
+                                 const std::atomic<bool>* cancel) const {
+  if (settings_.sampler == SamplerKind::kSobol)
+    return TraceBatchWith<SobolSampler>(p, probe, batch, count, sum, shared, cancel);
+  return TraceBatchWith<IndependentSampler>(p, probe, batch, count, sum, shared, cancel);
+}
+
+template <typename S>
+bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probe, uint32_t batch, int64_t count,
+                                     std::span<double> sum, SharedCounters* shared,
+                                     const std::atomic<bool>* cancel) const {
+  TraceCounters local;
+  TraceCounters* counters = &local;
+  const int order = settings_.shOrder;
+  const Vec3f origin(p);
+  S sampler(settings_.seed, Hash(probe, uint64_t(batch)));
+  std::vector<double> importanceProbe(lights_.Count()), scratchA(lights_.Count()),
+      scratchB(lights_.Count());
+  const double totalProbe = lights_.Importance(p, nullptr, /*includeDelta=*/false, importanceProbe);
+  const double pdfProbe = UniformSpherePdf();
+
+  for (int64_t i = 0; i < count; ++i) {
+    if ((i & 255) == 0) {
+      if (shared) shared->Add(local);
+      local = {};
+      if (cancel && cancel->load(std::memory_order_relaxed)) return false;
+    }
+    sampler.StartSample(uint64_t(i));
+    const Vec2d uDirection = sampler.Get2D();
+    const double uSelect = sampler.Get1D();
+    const Vec2d uLight = sampler.Get2D();
+
+    if (lightSampling_ && totalProbe > 0) {
+      LightSample ls;
+      if (lights_.Sample(p, nullptr, importanceProbe, totalProbe, uSelect, uLight, &ls) &&
+          Unoccluded(origin, ls, counters)) {
+        const double w = mis_ ? BalanceHeuristic(ls.pdf, pdfProbe) : 1.0;
+        Project(order, ls.wi, ls.radiance * (w / ls.pdf), sum);
+      }
+    }
+
+    const Vec3d wi = SampleUniformSphere(uDirection);
+    std::copy(importanceProbe.begin(), importanceProbe.end(), scratchA.begin());
+    const Vec3d radiance =
+        TracePath(origin, p, wi, pdfProbe, scratchA, totalProbe, scratchB, sampler, counters);
+    if (MaxComponent(radiance) > 0) Project(order, wi, radiance / pdfProbe, sum);
+    ++counters->samples;
+  }
+  if (shared) shared->Add(local);
+  return true;
+}
+
+template <typename S>
+Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d wi, double pdfDir,
+                                 std::span<double> importancePrev, double totalPrev,
+                                 std::span<double> scratch, S& sampler,
+                                 TraceCounters* counters) const {
+  Vec3d radiance, beta{1, 1, 1};
+  Vec3f origin = originIn;
+  Vec3d pPrev = pIn;
+  Vec3d nPrevStorage;
+  const Vec3d* nPrev = nullptr;  // the probe has no surface
+  for (int bounce = 1;; ++bounce) {
+    SurfaceHit hit;
+    ++counters->rays;
+    if (!tracer_.Intersect(origin, wi, kInf, &hit)) {
+      if (countEmission_) {
+        lights_.ForEachEscaped(nPrev, importancePrev, totalPrev, wi, [&](const LightHit& h) {
+          const double w = mis_ ? BalanceHeuristic(pdfDir, h.pdf) : 1.0;
+          radiance += beta * h.radiance * w;
+        });
+      }
+      break;
+    }
+    if (countEmission_) {
+      LightHit h;
+      if (lights_.EvalSurfaceHit(pPrev, nPrev, importancePrev, totalPrev, wi, hit, &h)) {
+        const double w = mis_ ? BalanceHeuristic(pdfDir, h.pdf) : 1.0;
+        radiance += beta * h.radiance * w;
+      }
+    }
+    if (hit.kind != SurfaceKind::kMesh) break;  // area lights' surfaces absorb
+    if (bounce > settings_.maxDepth) break;
+    const Vec3d& albedo = scene_.materials[scene_.meshes[hit.index].material].albedo;
+
+    const double uSelect = sampler.Get1D();
+    const Vec2d uLight = sampler.Get2D();
+    const Vec2d uContinue = sampler.Get2D();
+    const double uRoulette = sampler.Get1D();
+    if (MaxComponent(albedo) <= 0) break;
+
+    // Shade on the side the ray arrived from; both sides of a mesh reflect.
+    const Vec3d n = Dot(wi, hit.ng) < 0 ? hit.ng : -hit.ng;
+    const Vec3f spawn = OffsetRayOrigin(hit.pf, Vec3f(n));
+    const double total = lights_.Importance(hit.p, &n, /*includeDelta=*/true, scratch);
+
+    if (lightSampling_ && total > 0) {
+      LightSample ls;
+      if (lights_.Sample(hit.p, &n, scratch, total, uSelect, uLight, &ls)) {
+        const double cosTheta = Dot(ls.wi, n);
+        if (cosTheta > 0 && Unoccluded(spawn, ls, counters)) {
+          const double pdfBsdf = cosTheta * kInvPi;
+          const double w = (mis_ && !ls.delta) ? BalanceHeuristic(ls.pdf, pdfBsdf) : 1.0;
+          radiance += beta * albedo * ls.radiance * (kInvPi * cosTheta * w / ls.pdf);
+        }
+      }
+    }
+
+    const Vec3d local = SampleCosineHemisphere(uContinue);
+    pdfDir = CosineHemispherePdf(local.z);
+    if (!(pdfDir > 0)) break;
+    wi = Normalize(Framed::FromZ(n).FromLocal(local));
+    // f cos / pdf = (albedo / pi) cos / (cos / pi) = albedo.
+    beta *= albedo;
+    if (settings_.russianRoulette && bounce >= settings_.rrMinDepth) {
+      const double survive = std::min(1.0, MaxComponent(beta));
+      if (uRoulette >= survive) break;
+      beta = beta / survive;
+    }
+    origin = spawn;
+    pPrev = hit.p;
+    nPrevStorage = n;
+    nPrev = &nPrevStorage;
+    std::swap(importancePrev, scratch);
+    totalPrev = total;
+  }
+  return radiance;
+}
+
+}  // namespace probebake

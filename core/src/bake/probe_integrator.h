@@ -1,0 +1,85 @@
+// The per-probe estimator: SH projection of incoming radiance by path tracing.
+//
+// For a probe at p the target is c_i = ∫ L(p, ω) Y_i(ω) dω per RGB channel. Each sample combines
+// two techniques at the probe, as at every later path vertex:
+//   - direction sampling: ω uniform on the sphere (the probe's "BSDF" is the SH measurement, its
+//     pdf 1/4π), a path traced from p gives L(p, ω); contribution L Y(ω) / pdf;
+//   - light sampling (NEE): a light chosen and sampled at p, one shadow ray; contribution
+//     Le Y(ω_l) / pdf_l.
+// With Estimator::kNeeMis both are weighted by the balance heuristic w_a = p_a / (p_a + p_b)
+// (one sample per technique), so emission found by either is counted exactly once. Along the
+// path: Lambertian vertices with cosine-weighted continuation, NEE with the same MIS, Russian
+// roulette after rrMinDepth bounces (survival = max throughput channel, capped at 1), and at most
+// maxDepth scattering vertices (light reflected more than maxDepth times is not counted; emitters
+// seen directly are always counted). Delta lights at the probe are not sampled here: the bake
+// projects them exactly (bake.cpp).
+//
+// Random dimensions per sample, always consumed in this order so each dimension keeps one meaning
+// across samples (what quasi-Monte Carlo stratification needs): probe direction (2D), light
+// choice (1D), light point (2D); then per scattering vertex: light choice (1D), light point (2D),
+// continuation (2D), roulette (1D).
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "light_set.h"
+#include "probebake/math/vec3.h"
+#include "probebake/scene/scene.h"
+#include "tracer_scene.h"
+
+namespace probebake {
+
+struct TraceCounters {
+  int64_t rays = 0;
+  int64_t samples = 0;
+};
+
+// Bake-wide totals that progress reports read while workers run.
+struct SharedCounters {
+  std::atomic<int64_t> rays{0};
+  std::atomic<int64_t> samples{0};
+  void Add(const TraceCounters& c) {
+    rays.fetch_add(c.rays, std::memory_order_relaxed);
+    samples.fetch_add(c.samples, std::memory_order_relaxed);
+  }
+};
+
+class ProbeIntegrator {
+ public:
+  ProbeIntegrator(const Scene& scene, const TracerScene& tracer, const LightSet& lights,
+                  const BakeSettings& settings);
+
+  // Adds to `sum` ((shOrder+1)^2 x 3 doubles, coefficient-major RGB) the contributions of samples
+  // [0, count) of the random stream (seed, Hash(probe, batch)) for the probe at local position p.
+  // Adds the work done to `shared` every few hundred samples. Returns false if `cancel` was
+  // raised (the partial sum is then meaningless).
+  bool TraceBatch(const Vec3d& p, uint64_t probe, uint32_t batch, int64_t count,
+                  std::span<double> sum, SharedCounters* shared,
+                  const std::atomic<bool>* cancel) const;
+
+  // True when nothing lies between `origin` and the sampled light point.
+  bool Unoccluded(const Vec3f& origin, const LightSample& s, TraceCounters* counters) const;
+
+ private:
+  template <typename S>
+  bool TraceBatchWith(const Vec3d& p, uint64_t probe, uint32_t batch, int64_t count,
+                      std::span<double> sum, SharedCounters* shared,
+                      const std::atomic<bool>* cancel) const;
+  template <typename S>
+  Vec3d TracePath(const Vec3f& origin, const Vec3d& p, Vec3d wi, double pdfDir,
+                  std::span<double> importancePrev, double totalPrev, std::span<double> scratch,
+                  S& sampler, TraceCounters* counters) const;
+
+  const Scene& scene_;
+  const TracerScene& tracer_;
+  const LightSet& lights_;
+  const BakeSettings& settings_;
+  bool lightSampling_;  // NEE on
+  bool countEmission_;  // direction-sampled rays count the emission they hit
+  bool mis_;            // weight the two by the balance heuristic
+};
+
+}  // namespace probebake

@@ -1,0 +1,340 @@
+#include "tracer_scene.h"
+
+#include <embree3/rtcore.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <string>
+#include <variant>
+
+#include "probebake/base/check.h"
+#include "probebake/base/log.h"
+#include "probebake/base/status.h"
+
+namespace probebake {
+namespace {
+
+// Device errors arrive through a callback; the first one is kept and turned into a status.
+struct DeviceErrors {
+  std::mutex mutex;
+  std::string first;
+};
+
+void OnEmbreeError(void* user, RTCError code, const char* message) {
+  auto* errors = static_cast<DeviceErrors*>(user);
+  std::lock_guard lock(errors->mutex);
+  if (errors->first.empty())
+    errors->first = "Embree error " + std::to_string(int(code)) + ": " + (message ? message : "");
+}
+
+// Closest point of triangle abc to p (Ericson, Real-Time Collision Detection, 5.1.5), in double.
+Vec3d ClosestPointOnTriangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
+  const Vec3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = Dot(ab, ap), d2 = Dot(ac, ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Vec3d bp = p - b;
+  const double d3 = Dot(ab, bp), d4 = Dot(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + ab * (d1 / (d1 - d3));
+  const Vec3d cp = p - c;
+  const double d5 = Dot(ab, cp), d6 = Dot(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + ac * (d2 / (d2 - d6));
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0)
+    return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+  const double denom = 1 / (va + vb + vc);
+  return a + ab * (vb * denom) + ac * (vc * denom);
+}
+
+struct PointQueryState {
+  const TracerScene* scene;
+  const std::vector<const float*>* verts;
+  const std::vector<const uint32_t*>* indices;
+  const std::vector<uint32_t>* meshOfGeom;  // mesh index by geometry ID, or UINT32_MAX
+  Vec3d p;
+  bool found = false;
+};
+
+Vec3d Vertex(const float* v, uint32_t i) {
+  return {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
+}
+
+}  // namespace
+
+struct TracerScene::Impl {
+  DeviceErrors errors;
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  std::vector<uint32_t> meshOfGeom;
+
+  ~Impl() {
+    if (scene) rtcReleaseScene(scene);
+    if (device) rtcReleaseDevice(device);
+  }
+  absl::Status Check(const char* what) {
+    std::lock_guard lock(errors.mutex);
+    if (errors.first.empty()) return absl::OkStatus();
+    return absl::InternalError(std::string(what) + ": " + errors.first);
+  }
+};
+
+TracerScene::~TracerScene() = default;
+
+Vec3d LocalOrigin(const Scene& scene, const ProbeGrid& grid) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
+  auto add = [&](const Vec3d& p) {
+    lo = Min(lo, p);
+    hi = Max(hi, p);
+  };
+  for (const TriangleMesh& m : scene.meshes)
+    for (const Vec3d& p : m.positions) add(p);
+  for (const Light& light : scene.lights) {
+    if (const auto* l = std::get_if<RectLight>(&light)) {
+      add(l->corner);
+      add(l->corner + l->edge1 + l->edge2);
+    } else if (const auto* d = std::get_if<DiskLight>(&light)) {
+      add(d->center);
+    } else if (const auto* s = std::get_if<SphereLight>(&light)) {
+      add(s->center);
+    } else if (const auto* pl = std::get_if<PointLight>(&light)) {
+      add(pl->position);
+    } else if (const auto* sl = std::get_if<SpotLight>(&light)) {
+      add(sl->position);
+    }
+  }
+  add(grid.origin);
+  add(grid.Position(grid.counts[0] - 1, grid.counts[1] - 1, grid.counts[2] - 1));
+  return (lo + hi) * 0.5;
+}
+
+absl::StatusOr<std::unique_ptr<TracerScene>> TracerScene::Build(const Scene& scene,
+                                                                const Vec3d& offset) {
+  std::unique_ptr<TracerScene> out(new TracerScene);
+  out->offset_ = offset;
+  out->impl_ = std::make_unique<Impl>();
+  Impl& impl = *out->impl_;
+  impl.device = rtcNewDevice(nullptr);
+  if (!impl.device)
+    return absl::InternalError("Embree: cannot create a device (error " +
+                               std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+  rtcSetDeviceErrorFunction(impl.device, OnEmbreeError, &impl.errors);
+  impl.scene = rtcNewScene(impl.device);
+  // Robust traversal: closed meshes must not leak rays through shared edges, or probes inside
+  // geometry would be misclassified.
+  rtcSetSceneFlags(impl.scene, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(impl.scene, RTC_BUILD_QUALITY_HIGH);
+
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  out->boundsMin_ = {kInf, kInf, kInf};
+  out->boundsMax_ = {-kInf, -kInf, -kInf};
+  auto grow = [&](const Vec3d& p) {
+    out->boundsMin_ = Min(out->boundsMin_, p);
+    out->boundsMax_ = Max(out->boundsMax_, p);
+  };
+  auto attach = [&](RTCGeometry geom, SurfaceKind kind, uint32_t index) {
+    rtcCommitGeometry(geom);
+    const unsigned id = rtcAttachGeometry(impl.scene, geom);
+    rtcReleaseGeometry(geom);
+    if (out->geoms_.size() <= id) out->geoms_.resize(id + 1);
+    out->geoms_[id] = {kind, index};
+    if (impl.meshOfGeom.size() <= id) impl.meshOfGeom.resize(id + 1, UINT32_MAX);
+    if (kind == SurfaceKind::kMesh) impl.meshOfGeom[id] = index;
+  };
+
+  out->normals_.resize(scene.meshes.size());
+  out->meshVerts_.assign(scene.meshes.size(), nullptr);
+  out->meshIndices_.assign(scene.meshes.size(), nullptr);
+  for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
+    const TriangleMesh& mesh = scene.meshes[m];
+    if (mesh.TriangleCount() == 0) continue;
+    RTCGeometry geom = rtcNewGeometry(impl.device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* verts = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
+                                                              RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+                                                              mesh.positions.size()));
+    auto* indices = static_cast<uint32_t*>(
+        rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                3 * sizeof(uint32_t), mesh.TriangleCount()));
+    if (!verts || !indices) {
+      rtcReleaseGeometry(geom);
+      PB_RETURN_IF_ERROR(impl.Check("Embree: allocating mesh buffers"));
+      return absl::InternalError("Embree: cannot allocate mesh buffers");
+    }
+    for (size_t i = 0; i < mesh.positions.size(); ++i) {
+      const Vec3d local = mesh.positions[i] - offset;
+      verts[3 * i] = float(local.x);
+      verts[3 * i + 1] = float(local.y);
+      verts[3 * i + 2] = float(local.z);
+      grow(local);
+    }
+    std::copy(mesh.indices.begin(), mesh.indices.end(), indices);
+    std::vector<Vec3f>& normals = out->normals_[m];
+    normals.resize(mesh.TriangleCount());
+    for (size_t t = 0; t < mesh.TriangleCount(); ++t) {
+      const Vec3d& a = mesh.positions[mesh.indices[3 * t]];
+      const Vec3d& b = mesh.positions[mesh.indices[3 * t + 1]];
+      const Vec3d& c = mesh.positions[mesh.indices[3 * t + 2]];
+      const Vec3d n = Cross(b - a, c - a);
+      const double len = Length(n);
+      normals[t] = len > 0 ? Vec3f(n / len) : Vec3f(0, 0, 1);
+    }
+    out->meshVerts_[m] = verts;
+    out->meshIndices_[m] = indices;
+    attach(geom, SurfaceKind::kMesh, m);
+  }
+
+  for (uint32_t i = 0; i < scene.lights.size(); ++i) {
+    const Light& light = scene.lights[i];
+    if (const auto* rect = std::get_if<RectLight>(&light)) {
+      RTCGeometry geom = rtcNewGeometry(impl.device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      auto* v = static_cast<float*>(
+          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 12, 4));
+      auto* idx = static_cast<uint32_t*>(
+          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 12, 2));
+      const Vec3d c = rect->corner - offset;
+      const Vec3d corners[4] = {c, c + rect->edge1, c + rect->edge1 + rect->edge2, c + rect->edge2};
+      for (int k = 0; k < 4; ++k) {
+        v[3 * k] = float(corners[k].x);
+        v[3 * k + 1] = float(corners[k].y);
+        v[3 * k + 2] = float(corners[k].z);
+        grow(corners[k]);
+      }
+      // Counter-clockwise seen from the emitting side: normal along edge1 x edge2.
+      const uint32_t tris[6] = {0, 1, 2, 0, 2, 3};
+      std::copy(tris, tris + 6, idx);
+      attach(geom, SurfaceKind::kRectLight, i);
+    } else if (const auto* disk = std::get_if<DiskLight>(&light)) {
+      RTCGeometry geom = rtcNewGeometry(impl.device, RTC_GEOMETRY_TYPE_ORIENTED_DISC_POINT);
+      auto* v = static_cast<float*>(
+          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 16, 1));
+      auto* n = static_cast<float*>(
+          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_NORMAL, 0, RTC_FORMAT_FLOAT3, 12, 1));
+      const Vec3d c = disk->center - offset;
+      v[0] = float(c.x), v[1] = float(c.y), v[2] = float(c.z), v[3] = float(disk->radius);
+      n[0] = float(disk->normal.x), n[1] = float(disk->normal.y), n[2] = float(disk->normal.z);
+      grow(c - Vec3d{disk->radius, disk->radius, disk->radius});
+      grow(c + Vec3d{disk->radius, disk->radius, disk->radius});
+      attach(geom, SurfaceKind::kDiskLight, i);
+    } else if (const auto* sphere = std::get_if<SphereLight>(&light)) {
+      RTCGeometry geom = rtcNewGeometry(impl.device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+      auto* v = static_cast<float*>(
+          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 16, 1));
+      const Vec3d c = sphere->center - offset;
+      v[0] = float(c.x), v[1] = float(c.y), v[2] = float(c.z), v[3] = float(sphere->radius);
+      grow(c - Vec3d{sphere->radius, sphere->radius, sphere->radius});
+      grow(c + Vec3d{sphere->radius, sphere->radius, sphere->radius});
+      attach(geom, SurfaceKind::kSphereLight, i);
+    }
+  }
+
+  PB_RETURN_IF_ERROR(impl.Check("Embree: creating geometry"));
+  rtcCommitScene(impl.scene);
+  PB_RETURN_IF_ERROR(impl.Check("Embree: building the BVH"));
+  return out;
+}
+
+bool TracerScene::Intersect(const Vec3f& origin, const Vec3d& dir, double tMax,
+                            SurfaceHit* hit) const {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  RTCRayHit rh;
+  rh.ray.org_x = origin.x;
+  rh.ray.org_y = origin.y;
+  rh.ray.org_z = origin.z;
+  rh.ray.tnear = 0;
+  rh.ray.dir_x = float(dir.x);
+  rh.ray.dir_y = float(dir.y);
+  rh.ray.dir_z = float(dir.z);
+  rh.ray.time = 0;
+  rh.ray.tfar = tMax >= double(std::numeric_limits<float>::max())
+                    ? std::numeric_limits<float>::infinity()
+                    : float(tMax);
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(impl_->scene, &context, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+
+  const GeomInfo info = geoms_[rh.hit.geomID];
+  hit->t = rh.ray.tfar;
+  hit->kind = info.kind;
+  hit->index = info.index;
+  hit->prim = rh.hit.primID;
+  if (info.kind == SurfaceKind::kMesh) {
+    const float* v = meshVerts_[info.index];
+    const uint32_t* idx = meshIndices_[info.index] + 3 * rh.hit.primID;
+    const float u = rh.hit.u, w = rh.hit.v, b0 = 1 - u - w;
+    for (int k = 0; k < 3; ++k)
+      hit->pf[k] = b0 * v[3 * idx[0] + k] + u * v[3 * idx[1] + k] + w * v[3 * idx[2] + k];
+    hit->p = Vec3d(hit->pf);
+    hit->ng = Vec3d(normals_[info.index][rh.hit.primID]);
+  } else {
+    // Area lights end paths: their hit point is needed for pdfs only, never to spawn rays.
+    hit->p = Vec3d(origin) + dir * hit->t;
+    hit->pf = Vec3f(hit->p);
+    hit->ng = Normalize(Vec3d{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z});
+  }
+  return true;
+}
+
+bool TracerScene::Occluded(const Vec3f& origin, const Vec3d& dir, double tMax) const {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  RTCRay ray;
+  ray.org_x = origin.x;
+  ray.org_y = origin.y;
+  ray.org_z = origin.z;
+  ray.tnear = 0;
+  ray.dir_x = float(dir.x);
+  ray.dir_y = float(dir.y);
+  ray.dir_z = float(dir.z);
+  ray.time = 0;
+  ray.tfar = tMax >= double(std::numeric_limits<float>::max())
+                 ? std::numeric_limits<float>::infinity()
+                 : float(tMax);
+  ray.mask = 0xFFFFFFFFu;
+  ray.id = 0;
+  ray.flags = 0;
+  rtcOccluded1(impl_->scene, &context, &ray);
+  return ray.tfar < 0;
+}
+
+bool TracerScene::MeshWithin(const Vec3d& p, double radius) const {
+  PointQueryState state{this, &meshVerts_, &meshIndices_, &impl_->meshOfGeom, p};
+  RTCPointQuery query;
+  query.x = float(p.x);
+  query.y = float(p.y);
+  query.z = float(p.z);
+  query.radius = float(radius);
+  query.time = 0;
+  RTCPointQueryContext context;
+  rtcInitPointQueryContext(&context);
+  auto callback = [](RTCPointQueryFunctionArguments* args) -> bool {
+    auto* s = static_cast<PointQueryState*>(args->userPtr);
+    if (s->found || args->geomID >= s->meshOfGeom->size()) return false;
+    const uint32_t mesh = (*s->meshOfGeom)[args->geomID];
+    if (mesh == UINT32_MAX) return false;
+    const float* v = (*s->verts)[mesh];
+    const uint32_t* idx = (*s->indices)[mesh] + 3 * args->primID;
+    const Vec3d q =
+        ClosestPointOnTriangle(s->p, Vertex(v, idx[0]), Vertex(v, idx[1]), Vertex(v, idx[2]));
+    if (Length(q - s->p) <= args->query->radius) {
+      s->found = true;
+      args->query->radius = 0;  // found one: shrink the search to end traversal quickly
+      return true;
+    }
+    return false;
+  };
+  rtcPointQuery(impl_->scene, &query, &context, callback, &state);
+  return state.found;
+}
+
+}  // namespace probebake

@@ -1,0 +1,80 @@
+// The ray-traceable scene of one bake: Embree 3 device and BVH over the meshes and the area
+// lights' own surfaces (rect: two triangles, disk: an oriented disc, sphere: a sphere), built once
+// per job and held in RAII wrappers.
+//
+// Coordinates: the tracer works in "local" coordinates, world minus `offset` (the centre of the
+// scene's bounds), in double. Embree stores float vertices of the local coordinates, so a scene far
+// from the world origin traces like the same scene at the origin. Thread safe for queries after
+// Build.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "probebake/math/vec3.h"
+#include "probebake/scene/scene.h"
+
+namespace probebake {
+
+enum class SurfaceKind : uint8_t { kMesh, kRectLight, kDiskLight, kSphereLight };
+
+struct SurfaceHit {
+  double t = 0;  // distance along the unit ray direction
+  Vec3d p;       // local position
+  Vec3f pf;      // the same, in float as Embree computed it (spawn rays from this)
+  Vec3d ng;      // unit geometric normal of the front (counter-clockwise / emitting) side
+  SurfaceKind kind = SurfaceKind::kMesh;
+  uint32_t index = 0;  // mesh index (kMesh) or light index in Scene::lights
+  uint32_t prim = 0;   // triangle index within the mesh
+};
+
+class TracerScene {
+ public:
+  // Builds the BVH. Errors reported by Embree's device callback come back as INTERNAL.
+  static absl::StatusOr<std::unique_ptr<TracerScene>> Build(const Scene& scene,
+                                                            const Vec3d& offset);
+  ~TracerScene();
+  TracerScene(const TracerScene&) = delete;
+  TracerScene& operator=(const TracerScene&) = delete;
+
+  // Nearest hit along origin + t dir, t in (0, tMax); dir unit. Returns false on a miss.
+  bool Intersect(const Vec3f& origin, const Vec3d& dir, double tMax, SurfaceHit* hit) const;
+  // True when anything lies along origin + t dir, t in (0, tMax).
+  bool Occluded(const Vec3f& origin, const Vec3d& dir, double tMax) const;
+  // True when a mesh triangle lies within `radius` of p (area lights' surfaces are not counted).
+  bool MeshWithin(const Vec3d& p, double radius) const;
+
+  const Vec3d& offset() const { return offset_; }
+  // Unit geometric normal of triangle `prim` of mesh `mesh` (local = world orientation).
+  const Vec3f& TriangleNormal(uint32_t mesh, uint32_t prim) const { return normals_[mesh][prim]; }
+  // Local-coordinate bounds of all geometry (meshes and area lights); empty scenes give min > max.
+  const Vec3d& boundsMin() const { return boundsMin_; }
+  const Vec3d& boundsMax() const { return boundsMax_; }
+
+ private:
+  struct GeomInfo {
+    SurfaceKind kind;
+    uint32_t index;
+  };
+  struct Impl;
+
+  TracerScene() = default;
+
+  Vec3d offset_;
+  Vec3d boundsMin_, boundsMax_;
+  std::unique_ptr<Impl> impl_;
+  std::vector<GeomInfo> geoms_;              // by Embree geometry ID
+  std::vector<std::vector<Vec3f>> normals_;  // per mesh, per triangle
+  // Per mesh: Embree's own float vertex (x y z per vertex) and index buffers, alive as long as
+  // the Embree scene.
+  std::vector<const float*> meshVerts_;
+  std::vector<const uint32_t*> meshIndices_;
+};
+
+// The centre of the bounds of everything finite in the scene (meshes, finite lights) and the probe
+// grid: the origin of the tracer's local coordinates.
+Vec3d LocalOrigin(const Scene& scene, const ProbeGrid& grid);
+
+}  // namespace probebake
