@@ -10,6 +10,7 @@
 #include "probebake/sh/sh_convolution.h"
 #include "probebake/sh/sh_projection.h"
 #include "probebake/sh/sh_rotation.h"
+#include "probebake/sh/sh_window.h"
 
 namespace probebake {
 namespace {
@@ -135,6 +136,36 @@ void BM_AccumulateRgb(benchmark::State& state) {
   benchmark::DoNotOptimize(acc.count());
 }
 BENCHMARK(BM_AccumulateRgb)->Arg(1)->Arg(2)->Arg(4)->Arg(8);
+
+// Auto window of probes lit by one to three directional lights and no ambient light, whose
+// irradiance rings negative: the search runs in full (the costly case).
+void BM_AutoWindowRinging(benchmark::State& state) {
+  const int order = static_cast<int>(state.range(0));
+  const auto dirs = Directions<double>();
+  std::vector<std::vector<Vec3d>> probes;
+  std::vector<double> y(ShCoeffCount(order));
+  for (int p = 0; p < 64; ++p) {
+    std::vector<Vec3d> radiance(ShCoeffCount(order));
+    for (int k = 0; k <= p % 3; ++k) {
+      EvalShBasis(order, dirs[3 * p + k], y.data());
+      const Vec3d power{1.0 + k, 0.5 + 0.1 * (p % 7), 0.8};
+      for (int i = 0; i < ShCoeffCount(order); ++i) radiance[i] += power * y[i];
+    }
+    probes.push_back(radiance);
+  }
+  size_t i = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(FindAutoShWindow(order, probes[i++ % probes.size()]));
+  }
+}
+BENCHMARK(BM_AutoWindowRinging)
+    ->Arg(1)
+    ->Arg(2)
+    ->Arg(3)
+    ->Arg(4)
+    ->Arg(6)
+    ->Arg(8)
+    ->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace probebake

@@ -1,0 +1,86 @@
+// Windows against ringing (SPEC 2), applied per band as f_lm *= w_l:
+//   none      w_l = 1
+//   Hanning   w_l = (1 + cos(π l / W)) / 2 for l <= W, 0 beyond (width W > 0)
+//   Lanczos   w_l = sinc(l / (L + 1)), sinc(x) = sin(πx)/(πx), L the expansion's order
+//   heat      w_l = exp(-t l(l+1)), t >= 0 (the heat kernel on the sphere at time t; t = +inf
+//             keeps band 0 only)
+//
+// Auto window: the heat family is the one-parameter family searched, because the heat kernel
+// is a positive operator and obeys the minimum principle: the minimum over the sphere of the
+// windowed irradiance is non-decreasing in t. So "the weakest window that makes the irradiance
+// non-negative" is well defined: t* = min{t >= 0 : E_t(ω) >= 0 for all ω and all three RGB
+// channels}, found by bisection on t, and every t < t* leaves a negative value somewhere.
+// Radiance whose irradiance is already non-negative gives t* = 0 (the input is unchanged).
+//  - Orders <= 3 (irradiance bands 0, 1, 2 only, since Â_3 = 0): E(ω) = c + b·ω + ωᵀAω is a
+//    quadratic form on the sphere, minimised exactly through the eigenvectors of A and the dual
+//    max_{μ <= λmin} μ - Σ β_i² / (4(λ_i - μ)), which is a certified lower bound for every μ
+//    and tight at its maximiser (trust-region duality). The bisection therefore returns a t
+//    whose irradiance is provably non-negative (up to rounding).
+//  - Orders >= 4: a deterministic grid (spacing π/(2 L_E + 2), L_E the highest irradiance
+//    band) gives each point's per-band values once; the bisection runs on the grid minimum, then
+//    grid local minima that a Bernstein bound cannot clear are refined by Newton's method on
+//    the sphere; refined minima that are still negative join the grid and the bisection resumes
+//    above. A first sufficient test (band amplitudes, addition theorem) clears most probes with
+//    no grid work at all.
+// Cost per probe: benchmark BM_AutoWindowRinging (probebake_sh_bench); probes that are already
+// non-negative mostly stop at the amplitude test.
+//
+// References: P.-P. Sloan, "Stupid Spherical Harmonics (SH) Tricks", GDC 2008 (windowing);
+// P.-P. Sloan, "Deringing Spherical Harmonics", SIGGRAPH Asia 2017 Technical Briefs;
+// J. J. Moré, D. C. Sorensen, "Computing a Trust Region Step", SIAM J. Sci. Stat. Comput. 4(3),
+// 1983 (the secular equation and the hard case).
+#pragma once
+
+#include <ostream>
+#include <span>
+#include <string>
+
+#include "probebake/math/vec3.h"
+
+namespace probebake {
+
+double HanningWindowFactor(int l, double width);  // width > 0, l >= 0 (checked)
+double LanczosWindowFactor(int l, int order);     // 0 <= l, order >= 0 (checked)
+double HeatWindowFactor(int l, double t);         // t >= 0 or +inf, l >= 0 (checked)
+
+enum class ShWindowKind { kNone, kHanning, kLanczos, kHeat };
+
+struct ShWindow {
+  ShWindowKind kind = ShWindowKind::kNone;
+  double parameter = 0;  // Hanning: width W; heat: t; unused otherwise
+
+  static ShWindow None() { return {}; }
+  static ShWindow Hanning(double width) { return {ShWindowKind::kHanning, width}; }
+  static ShWindow Lanczos() { return {ShWindowKind::kLanczos, 0}; }
+  static ShWindow Heat(double t) { return {ShWindowKind::kHeat, t}; }
+
+  // w_l for band l of an order-`order` expansion.
+  double Factor(int l, int order) const;
+  // "NONE", "HANNING(width=3)", "LANCZOS", "HEAT(t=0.0125)" (17 significant digits).
+  std::string ToString() const;
+
+  friend bool operator==(const ShWindow&, const ShWindow&) = default;
+};
+
+std::ostream& operator<<(std::ostream& os, const ShWindow& window);
+
+// coeffs_lm *= w_l for the first ShCoeffCount(order) coefficients (checked).
+void ApplyShWindow(const ShWindow& window, int order, std::span<double> coeffs);
+void ApplyShWindowRgb(const ShWindow& window, int order, std::span<Vec3d> coeffs);
+
+struct AutoWindowResult {
+  // Heat(t*). t* = 0 when the irradiance is already non-negative; +inf (band 0 only) when no
+  // window of the family suffices.
+  ShWindow window;
+  // False only when some channel's mean irradiance is negative (radiance L00 < 0), which no
+  // window can fix (valid radiance never does this).
+  bool nonNegative = true;
+};
+
+std::ostream& operator<<(std::ostream& os, const AutoWindowResult& result);
+
+// The auto window of an order-`order` RGB radiance expansion (the irradiance is its Â_l
+// convolution). Does not modify radiance; apply result.window with ApplyShWindowRgb.
+AutoWindowResult FindAutoShWindow(int order, std::span<const Vec3d> radiance);
+
+}  // namespace probebake
