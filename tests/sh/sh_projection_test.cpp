@@ -35,7 +35,7 @@ TEST(ShProjection, QuadratureProjectionRecoversAnExpansion) {
         order, std::span<const SphereQuadratureNode>(nodes),
         [&](const Vec3d& w) { return ShReconstruct(order, c, w); }, std::span<double>(p));
     for (size_t i = 0; i < c.size(); ++i) ASSERT_NEAR(p[i], c[i], 1e-12) << "order " << order;
-    // RGB: three different functions at once.
+    // RGB: three different functions at once (the -2x channel doubles the rounding: 2e-12).
     std::vector<Vec3d> rgb(c.size()), prgb(c.size());
     for (size_t i = 0; i < c.size(); ++i) rgb[i] = {c[i], -2 * c[i], c[c.size() - 1 - i]};
     ShProjectQuadrature(
@@ -47,7 +47,8 @@ TEST(ShProjection, QuadratureProjectionRecoversAnExpansion) {
 }
 
 TEST(ShProjection, WhiteFurnace) {
-  // Constant 1: f_00 = ∫ Y00 = 4π / (2 sqrt(π)) = 2 sqrt(π); all others vanish.
+  // Constant 1: f_00 = ∫ Y00 = 4π / (2 sqrt(π)) = 2 sqrt(π); all others vanish. The rule is
+  // exact for degree 4; rounding over 15 nodes of weights summing to 4π: ~1e-15; bound 1e-14.
   const int order = 4;
   const auto nodes = SphereQuadratureForDegree(order);
   std::vector<double> p(ShCoeffCount(order));
@@ -61,7 +62,9 @@ TEST(ShProjection, WhiteFurnace) {
 TEST(ShProjection, ReconstructionAndProductIntegral) {
   const int order = 5;
   const std::vector<double> f = RandomCoefficients(order, 1), g = RandomCoefficients(order, 2);
-  // ∫ f g by a rule exact for degree 2L equals the coefficient dot product.
+  // ∫ f g by a rule exact for degree 2L equals the coefficient dot product, up to rounding over
+  // 66 nodes of a sum of ~36² O(1) products: ~1e-14; bound 1e-12. The RGB variants run the same
+  // arithmetic per channel, so they must agree exactly.
   double integral = 0;
   for (const auto& node : SphereQuadratureForDegree(2 * order)) {
     integral += node.weight * ShReconstruct(order, f, node.direction) *
@@ -201,7 +204,7 @@ TEST(ShAccumulator, DeterministicAndMergeable) {
     const double bound = 2 * (ShAccumulator::kBlockSize + 2) * (kDoubleEps / 2) * absSum[i];
     EXPECT_NEAR(merged[i], sa[i], bound) << i;
   }
-  // Reset empties; Sum scales.
+  // Reset empties; Sum scales (one sample: Y_10(+Z) · 2 · 0.5, two roundings of sqrt(3/(4π))).
   a.Reset();
   EXPECT_EQ(a.count(), 0);
   a.Add(Vec3d{0, 0, 1}, 2.0);

@@ -81,6 +81,7 @@ TEST(UnitySh9, SkyLightIsUpInBothFrames) {
   EXPECT_GT(EvalUnityShadeSh9(unity, {0, 1, 0}).x, EvalUnityShadeSh9(unity, {0, 0, 1}).x);
   EXPECT_GT(EvalUnityShadeSh9(unity, {0, 1, 0}).x, EvalUnityShadeSh9(unity, {0, -1, 0}).x);
   // E(up)/π of a unit delta from up, order 2: (π Y00² + 2π/3 · 3/(4π) + π/4 · 5/(4π)) / π.
+  // Float constants: relative 2^-24 on terms summing to ~0.34: 1e-6 leaves room.
   const double expected = (0.25 + 0.5 + 5.0 / 16) / kPi;
   EXPECT_NEAR(EvalUnityShadeSh9(unity, {0, 1, 0}).y, expected, 1e-6);
 }

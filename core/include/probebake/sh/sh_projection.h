@@ -21,6 +21,7 @@
 
 #include <cstdint>
 #include <span>
+#include <type_traits>
 #include <vector>
 
 #include "probebake/base/check.h"
@@ -46,7 +47,8 @@ Vec3d ShDotRgb(int order, std::span<const Vec3d> f, std::span<const double> g);
 template <typename Value>
 class ShAccumulatorT {
  public:
-  static constexpr int kChannels = sizeof(Value) / sizeof(double);
+  static_assert(std::is_same_v<Value, double> || std::is_same_v<Value, Vec3d>);
+  static constexpr int kChannels = std::is_same_v<Value, double> ? 1 : 3;
   static constexpr int kBlockSize = 256;
 
   // 0 <= order <= kMaxShOrder (checked).
