@@ -10,6 +10,7 @@
 #include <sstream>
 #include <vector>
 
+#include "probebake/scene/scene.h"  // its ShWindow setting must coexist with ShBandWindow
 #include "probebake/sh/sh_basis.h"
 #include "probebake/sh/sh_convolution.h"
 #include "probebake/sh/sphere_quadrature.h"
@@ -22,12 +23,12 @@ using test::kPi;
 
 // Factor tests compare with the same formula evaluated here: 1e-16 allows the library's
 // different (but equivalent) operation order, about half an ulp of values <= 1.
-TEST(ShWindow, HanningFactorsFollowTheFormula) {
+TEST(ShBandWindow, HanningFactorsFollowTheFormula) {
   for (const double w : {0.5, 1.0, 2.0, 2.5, 4.0, 9.0}) {
     for (int l = 0; l <= 12; ++l) {
       const double expected = l <= w ? (1 + std::cos(kPi * l / w)) / 2 : 0.0;
       EXPECT_NEAR(HanningWindowFactor(l, w), expected, 1e-16) << "l " << l << " W " << w;
-      EXPECT_EQ(ShWindow::Hanning(w).Factor(l, 8), HanningWindowFactor(l, w));
+      EXPECT_EQ(ShBandWindow::Hanning(w).Factor(l, 8), HanningWindowFactor(l, w));
     }
   }
   // Known values: W = 2 gives 1, 1/2, 0, 0.
@@ -37,13 +38,13 @@ TEST(ShWindow, HanningFactorsFollowTheFormula) {
   EXPECT_EQ(HanningWindowFactor(3, 2), 0.0);
 }
 
-TEST(ShWindow, LanczosFactorsFollowTheFormula) {
+TEST(ShBandWindow, LanczosFactorsFollowTheFormula) {
   for (int order = 0; order <= kMaxShOrder; ++order) {
     EXPECT_EQ(LanczosWindowFactor(0, order), 1.0);
     for (int l = 1; l <= order; ++l) {
       const double x = static_cast<double>(l) / (order + 1);
       EXPECT_NEAR(LanczosWindowFactor(l, order), std::sin(kPi * x) / (kPi * x), 1e-16);
-      EXPECT_EQ(ShWindow::Lanczos().Factor(l, order), LanczosWindowFactor(l, order));
+      EXPECT_EQ(ShBandWindow::Lanczos().Factor(l, order), LanczosWindowFactor(l, order));
     }
   }
   // Order 2: sinc(1/3) = (3 sqrt(3)/2)/π, sinc(2/3) = (3 sqrt(3)/4)/π.
@@ -51,7 +52,7 @@ TEST(ShWindow, LanczosFactorsFollowTheFormula) {
   EXPECT_NEAR(LanczosWindowFactor(2, 2), 0.75 * std::sqrt(3.0) / kPi, 1e-15);
 }
 
-TEST(ShWindow, HeatFactorsAndApply) {
+TEST(ShBandWindow, HeatFactorsAndApply) {
   EXPECT_EQ(HeatWindowFactor(0, 5.0), 1.0);
   EXPECT_EQ(HeatWindowFactor(3, 0.0), 1.0);
   EXPECT_NEAR(HeatWindowFactor(2, 0.1), std::exp(-0.6), 1e-16);
@@ -59,19 +60,19 @@ TEST(ShWindow, HeatFactorsAndApply) {
   EXPECT_EQ(HeatWindowFactor(0, std::numeric_limits<double>::infinity()), 1.0);
   const int order = 3;
   std::vector<double> c(ShCoeffCount(order), 2.0);
-  ApplyShWindow(ShWindow::Hanning(2), order, c);
+  ApplyShWindow(ShBandWindow::Hanning(2), order, c);
   for (int l = 0; l <= order; ++l)
     for (int m = -l; m <= l; ++m)
       EXPECT_NEAR(c[ShIndex(l, m)], 2 * HanningWindowFactor(l, 2), 1e-15) << l;
   std::vector<Vec3d> rgb(ShCoeffCount(order), Vec3d{1, 2, 3});
-  ApplyShWindowRgb(ShWindow::Lanczos(), order, rgb);
+  ApplyShWindowRgb(ShBandWindow::Lanczos(), order, rgb);
   EXPECT_NEAR(rgb[ShIndex(2, 1)].y, 2 * LanczosWindowFactor(2, order), 1e-15);
-  EXPECT_EQ(ShWindow::None().ToString(), "NONE");
-  EXPECT_EQ(ShWindow::Hanning(3).ToString(), "HANNING(width=3)");
-  EXPECT_EQ(ShWindow::Lanczos().ToString(), "LANCZOS");
-  EXPECT_EQ(ShWindow::Heat(0.25).ToString(), "HEAT(t=0.25)");
+  EXPECT_EQ(ShBandWindow::None().ToString(), "NONE");
+  EXPECT_EQ(ShBandWindow::Hanning(3).ToString(), "HANNING(width=3)");
+  EXPECT_EQ(ShBandWindow::Lanczos().ToString(), "LANCZOS");
+  EXPECT_EQ(ShBandWindow::Heat(0.25).ToString(), "HEAT(t=0.25)");
   std::ostringstream os;
-  os << AutoWindowResult{ShWindow::Heat(0.5), true};
+  os << AutoWindowResult{ShBandWindow::Heat(0.5), true};
   EXPECT_EQ(os.str(), "AutoWindowResult{HEAT(t=0.5)}");
 }
 
@@ -175,7 +176,7 @@ TEST(AutoWindow, NonNegativeAndMinimalAtEveryOrder) {
       if (before >= 0) continue;  // nothing to test with this probe (rare)
       const AutoWindowResult r = FindAutoShWindow(order, radiance);
       ASSERT_TRUE(r.nonNegative) << r;
-      ASSERT_EQ(r.window.kind, ShWindowKind::kHeat);
+      ASSERT_EQ(r.window.kind, ShBandWindowKind::kHeat);
       const double t = r.window.parameter;
       ASSERT_GT(t, 0) << "order " << order << ", minimum before " << before;
       ASSERT_TRUE(std::isfinite(t));

@@ -38,40 +38,40 @@ double HeatWindowFactor(int l, double t) {
   return std::exp(-t * l * (l + 1));
 }
 
-double ShWindow::Factor(int l, int order) const {
+double ShBandWindow::Factor(int l, int order) const {
   switch (kind) {
-    case ShWindowKind::kNone:
+    case ShBandWindowKind::kNone:
       return 1;
-    case ShWindowKind::kHanning:
+    case ShBandWindowKind::kHanning:
       return HanningWindowFactor(l, parameter);
-    case ShWindowKind::kLanczos:
+    case ShBandWindowKind::kLanczos:
       return LanczosWindowFactor(l, order);
-    case ShWindowKind::kHeat:
+    case ShBandWindowKind::kHeat:
       return HeatWindowFactor(l, parameter);
   }
   PB_CHECK(false);
   return 0;
 }
 
-std::string ShWindow::ToString() const {
+std::string ShBandWindow::ToString() const {
   std::ostringstream os;
   os.precision(17);
   switch (kind) {
-    case ShWindowKind::kNone:
+    case ShBandWindowKind::kNone:
       return "NONE";
-    case ShWindowKind::kHanning:
+    case ShBandWindowKind::kHanning:
       os << "HANNING(width=" << parameter << ")";
       break;
-    case ShWindowKind::kLanczos:
+    case ShBandWindowKind::kLanczos:
       return "LANCZOS";
-    case ShWindowKind::kHeat:
+    case ShBandWindowKind::kHeat:
       os << "HEAT(t=" << parameter << ")";
       break;
   }
   return os.str();
 }
 
-std::ostream& operator<<(std::ostream& os, const ShWindow& window) {
+std::ostream& operator<<(std::ostream& os, const ShBandWindow& window) {
   return os << window.ToString();
 }
 
@@ -83,10 +83,10 @@ std::ostream& operator<<(std::ostream& os, const AutoWindowResult& result) {
 namespace {
 
 template <typename V>
-void ApplyWindow(const ShWindow& window, int order, std::span<V> coeffs) {
+void ApplyWindow(const ShBandWindow& window, int order, std::span<V> coeffs) {
   PB_CHECK(order >= 0 && order <= kMaxShOrder);
   PB_CHECK_GE(coeffs.size(), static_cast<size_t>(ShCoeffCount(order)));
-  if (window.kind == ShWindowKind::kNone) return;
+  if (window.kind == ShBandWindowKind::kNone) return;
   for (int l = 0; l <= order; ++l) {
     const double w = window.Factor(l, order);
     for (int i = l * l; i < (l + 1) * (l + 1); ++i) coeffs[i] = coeffs[i] * w;
@@ -95,11 +95,11 @@ void ApplyWindow(const ShWindow& window, int order, std::span<V> coeffs) {
 
 }  // namespace
 
-void ApplyShWindow(const ShWindow& window, int order, std::span<double> coeffs) {
+void ApplyShWindow(const ShBandWindow& window, int order, std::span<double> coeffs) {
   ApplyWindow(window, order, coeffs);
 }
 
-void ApplyShWindowRgb(const ShWindow& window, int order, std::span<Vec3d> coeffs) {
+void ApplyShWindowRgb(const ShBandWindow& window, int order, std::span<Vec3d> coeffs) {
   ApplyWindow(window, order, coeffs);
 }
 
@@ -398,9 +398,9 @@ AutoWindowResult AutoWindowQuadratic(int order, std::span<const Vec3d> radiance,
     return m;
   };
   const double m0 = minimum(0);
-  if (m0 >= 0) return {ShWindow::Heat(0), true};
+  if (m0 >= 0) return {ShBandWindow::Heat(0), true};
   const double hi = CertifiedUpperT(bands, bounds);
-  return {ShWindow::Heat(SmallestNonNegativeT(0, m0, hi, std::max(0.0, minimum(hi)), minimum)),
+  return {ShBandWindow::Heat(SmallestNonNegativeT(0, m0, hi, std::max(0.0, minimum(hi)), minimum)),
           true};
 }
 
@@ -707,17 +707,17 @@ AutoWindowResult FindAutoShWindow(int order, std::span<const Vec3d> radiance) {
   PB_CHECK_GE(radiance.size(), static_cast<size_t>(ShCoeffCount(order)));
   const Bands bands(order);
   const ChannelBounds bounds = MakeBounds(bands, radiance);
-  if (SufficientTestPasses(bands, bounds, 0)) return {ShWindow::Heat(0), true};
+  if (SufficientTestPasses(bands, bounds, 0)) return {ShBandWindow::Heat(0), true};
   // As t grows the irradiance tends to its constant term c: a channel with c < 0 cannot be
   // fixed, and one with c = 0 and other bands is non-negative only in the limit t = +inf.
   for (int ch = 0; ch < 3; ++ch) {
     double sum = 0;
     for (int j = 1; j < bands.count; ++j) sum += bounds.a[ch][j];
-    if (bounds.c[ch] < 0) return {ShWindow::Heat(kInf), false};
-    if (bounds.c[ch] == 0 && sum > 0) return {ShWindow::Heat(kInf), true};
+    if (bounds.c[ch] < 0) return {ShBandWindow::Heat(kInf), false};
+    if (bounds.c[ch] == 0 && sum > 0) return {ShBandWindow::Heat(kInf), true};
   }
   if (order <= 3) return AutoWindowQuadratic(order, radiance, bands, bounds);
-  return {ShWindow::Heat(NumericAutoWindow(order, radiance, bands, bounds).Solve()), true};
+  return {ShBandWindow::Heat(NumericAutoWindow(order, radiance, bands, bounds).Solve()), true};
 }
 
 }  // namespace probebake

@@ -43,35 +43,37 @@ double HanningWindowFactor(int l, double width);  // width > 0, l >= 0 (checked)
 double LanczosWindowFactor(int l, int order);     // 0 <= l, order >= 0 (checked)
 double HeatWindowFactor(int l, double t);         // t >= 0 or +inf, l >= 0 (checked)
 
-enum class ShWindowKind { kNone, kHanning, kLanczos, kHeat };
+// A window with its parameter. (scene/scene.h's ShWindow is the job setting that selects one;
+// this is the window itself, as applied and recorded.)
+enum class ShBandWindowKind { kNone, kHanning, kLanczos, kHeat };
 
-struct ShWindow {
-  ShWindowKind kind = ShWindowKind::kNone;
+struct ShBandWindow {
+  ShBandWindowKind kind = ShBandWindowKind::kNone;
   double parameter = 0;  // Hanning: width W; heat: t; unused otherwise
 
-  static ShWindow None() { return {}; }
-  static ShWindow Hanning(double width) { return {ShWindowKind::kHanning, width}; }
-  static ShWindow Lanczos() { return {ShWindowKind::kLanczos, 0}; }
-  static ShWindow Heat(double t) { return {ShWindowKind::kHeat, t}; }
+  static ShBandWindow None() { return {}; }
+  static ShBandWindow Hanning(double width) { return {ShBandWindowKind::kHanning, width}; }
+  static ShBandWindow Lanczos() { return {ShBandWindowKind::kLanczos, 0}; }
+  static ShBandWindow Heat(double t) { return {ShBandWindowKind::kHeat, t}; }
 
   // w_l for band l of an order-`order` expansion.
   double Factor(int l, int order) const;
   // "NONE", "HANNING(width=3)", "LANCZOS", "HEAT(t=0.0125)" (17 significant digits).
   std::string ToString() const;
 
-  friend bool operator==(const ShWindow&, const ShWindow&) = default;
+  friend bool operator==(const ShBandWindow&, const ShBandWindow&) = default;
 };
 
-std::ostream& operator<<(std::ostream& os, const ShWindow& window);
+std::ostream& operator<<(std::ostream& os, const ShBandWindow& window);
 
 // coeffs_lm *= w_l for the first ShCoeffCount(order) coefficients (checked).
-void ApplyShWindow(const ShWindow& window, int order, std::span<double> coeffs);
-void ApplyShWindowRgb(const ShWindow& window, int order, std::span<Vec3d> coeffs);
+void ApplyShWindow(const ShBandWindow& window, int order, std::span<double> coeffs);
+void ApplyShWindowRgb(const ShBandWindow& window, int order, std::span<Vec3d> coeffs);
 
 struct AutoWindowResult {
   // Heat(t*). t* = 0 when the irradiance is already non-negative; +inf (band 0 only) when no
   // window of the family suffices.
-  ShWindow window;
+  ShBandWindow window;
   // False only when some channel's mean irradiance is negative (radiance L00 < 0), which no
   // window can fix (valid radiance never does this).
   bool nonNegative = true;
