@@ -268,7 +268,7 @@ absl::StatusOr<v1::BakeJob> Client::Watch(const std::string& name,
     // The server restarts (draining or gone): wait for it, within reconnectFor.
     auto now = std::chrono::steady_clock::now();
     if (brokenSince == std::chrono::steady_clock::time_point{}) brokenSince = now;
-    if (now - brokenSince > reconnectFor) return FromGrpc(status);
+    if (now - brokenSince >= reconnectFor) return FromGrpc(status);
     Logger("client")->info("{}: {}; reconnecting", name, status.error_message());
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     channel_->WaitForConnected(std::chrono::system_clock::now() + std::chrono::seconds(5));

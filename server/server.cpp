@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <thread>
 
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
@@ -95,10 +96,12 @@ absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
   ServiceLimits limits;
   limits.chunkBytes = options.chunkBytes;
   limits.maxMessageBytes = options.maxMessageBytes;
-  s->capabilities_ =
-      std::make_unique<CapabilitiesService>(s->auth_, s->jobs_.get(), s->blobs_.get(), limits);
-  s->content_ = std::make_unique<ContentStorageService>(s->auth_, s->blobs_.get(), limits);
-  s->bakeJobs_ = std::make_unique<BakeJobsService>(s->auth_, s->jobs_.get());
+  s->calls_ = std::make_shared<CallCounter>();
+  s->capabilities_ = std::make_unique<CapabilitiesService>(s->auth_, s->calls_, s->jobs_.get(),
+                                                           s->blobs_.get(), limits);
+  s->content_ =
+      std::make_unique<ContentStorageService>(s->auth_, s->calls_, s->blobs_.get(), limits);
+  s->bakeJobs_ = std::make_unique<BakeJobsService>(s->auth_, s->calls_, s->jobs_.get());
 
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
@@ -140,8 +143,15 @@ void ProbebakeServer::Shutdown() {
   Logger("server")->info("draining: health NOT_SERVING, new jobs refused");
   if (jobs_) jobs_->Shutdown();
   if (server_) {
-    // In-flight calls (uploads, downloads) get a moment to finish, then are cancelled.
-    server_->Shutdown(std::chrono::system_clock::now() + std::chrono::seconds(2));
+    // Calls in flight (uploads, downloads, a CreateBakeJob loading assets) get up to 2 s to
+    // finish; then the rest are cancelled and connections closed at once. (A Shutdown deadline
+    // alone would also wait that long for idle client connections.)
+    auto grace = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+    while (calls_->active() > 0 && std::chrono::steady_clock::now() < grace)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    if (calls_->active() > 0)
+      Logger("server")->warn("cancelling {} call(s) still in flight", calls_->active());
+    server_->Shutdown(std::chrono::system_clock::now());
     server_->Wait();
   }
   server_.reset();

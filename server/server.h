@@ -25,6 +25,7 @@ class TokenAuth;
 class CapabilitiesService;
 class ContentStorageService;
 class BakeJobsService;
+class CallCounter;
 
 struct ServerOptions {
   // host:port to listen on; port 0 picks a free one (see ProbebakeServer::port()).
@@ -68,6 +69,7 @@ class ProbebakeServer {
   std::unique_ptr<JobStore> store_;
   std::unique_ptr<JobManager> jobs_;
   std::shared_ptr<const TokenAuth> auth_;
+  std::shared_ptr<CallCounter> calls_;
   std::unique_ptr<CapabilitiesService> capabilities_;
   std::unique_ptr<ContentStorageService> content_;
   std::unique_ptr<BakeJobsService> bakeJobs_;

@@ -26,6 +26,18 @@ grpc::ServerUnaryReactor* Done(grpc::CallbackServerContext* context, const absl:
   return Done(context, ToGrpc(status));
 }
 
+// Counts a unary call for the duration of its (synchronous) handler.
+class CallScope {
+ public:
+  explicit CallScope(CallCounter& calls) : calls_(calls) { calls_.Enter(); }
+  ~CallScope() { calls_.Leave(); }
+  CallScope(const CallScope&) = delete;
+  CallScope& operator=(const CallScope&) = delete;
+
+ private:
+  CallCounter& calls_;
+};
+
 }  // namespace
 
 grpc::Status ToGrpc(const absl::Status& status) {
@@ -36,9 +48,9 @@ grpc::Status ToGrpc(const absl::Status& status) {
 // ---- Capabilities ----
 
 CapabilitiesService::CapabilitiesService(std::shared_ptr<const TokenAuth> auth,
-                                         const JobManager* jobs, const BlobStore* blobs,
-                                         ServiceLimits limits)
-    : auth_(std::move(auth)) {
+                                         std::shared_ptr<CallCounter> calls, const JobManager* jobs,
+                                         const BlobStore* blobs, ServiceLimits limits)
+    : auth_(std::move(auth)), calls_(std::move(calls)) {
   const JobManagerConfig& config = jobs->config();
   capabilities_.set_server_version(kVersion);
   capabilities_.set_baker_version(kBakerVersion);
@@ -65,6 +77,7 @@ CapabilitiesService::CapabilitiesService(std::shared_ptr<const TokenAuth> auth,
 grpc::ServerUnaryReactor* CapabilitiesService::GetCapabilities(
     grpc::CallbackServerContext* context, const v1::GetCapabilitiesRequest* /*request*/,
     v1::ServerCapabilities* response) {
+  CallScope scope(*calls_);
   if (grpc::Status auth = auth_->Check(*context); !auth.ok()) return Done(context, auth);
   *response = capabilities_;
   return Done(context, grpc::Status::OK);
@@ -73,12 +86,14 @@ grpc::ServerUnaryReactor* CapabilitiesService::GetCapabilities(
 // ---- ContentStorage ----
 
 ContentStorageService::ContentStorageService(std::shared_ptr<const TokenAuth> auth,
-                                             BlobStore* blobs, ServiceLimits limits)
-    : auth_(std::move(auth)), blobs_(blobs), limits_(limits) {}
+                                             std::shared_ptr<CallCounter> calls, BlobStore* blobs,
+                                             ServiceLimits limits)
+    : auth_(std::move(auth)), calls_(std::move(calls)), blobs_(blobs), limits_(limits) {}
 
 grpc::ServerUnaryReactor* ContentStorageService::FindMissingBlobs(
     grpc::CallbackServerContext* context, const v1::FindMissingBlobsRequest* request,
     v1::FindMissingBlobsResponse* response) {
+  CallScope scope(*calls_);
   if (grpc::Status auth = auth_->Check(*context); !auth.ok()) return Done(context, auth);
   if (request->blob_digests_size() > kMaxFindMissingDigests)
     return Done(context, FieldError("blobDigests", absl::StrCat("at most ", kMaxFindMissingDigests,
@@ -98,6 +113,7 @@ grpc::ServerUnaryReactor* ContentStorageService::FindMissingBlobs(
 grpc::ServerUnaryReactor* ContentStorageService::QueryWriteStatus(
     grpc::CallbackServerContext* context, const v1::QueryWriteStatusRequest* request,
     v1::QueryWriteStatusResponse* response) {
+  CallScope scope(*calls_);
   if (grpc::Status auth = auth_->Check(*context); !auth.ok()) return Done(context, auth);
   if (absl::Status valid = ValidateDigest(request->digest(), "digest"); !valid.ok())
     return Done(context, valid);
@@ -112,9 +128,11 @@ namespace {
 // WriteBlob: one upload per stream; chunks are appended as they arrive.
 class WriteBlobReactor final : public grpc::ServerReadReactor<v1::WriteBlobRequest> {
  public:
-  WriteBlobReactor(const TokenAuth& auth, grpc::CallbackServerContext* context, BlobStore* blobs,
+  WriteBlobReactor(const TokenAuth& auth, std::shared_ptr<CallCounter> calls,
+                   grpc::CallbackServerContext* context, BlobStore* blobs,
                    v1::WriteBlobResponse* response)
-      : blobs_(blobs), response_(response) {
+      : calls_(std::move(calls)), blobs_(blobs), response_(response) {
+    calls_->Enter();
     if (grpc::Status status = auth.Check(*context); !status.ok()) {
       Finish(status);
       return;
@@ -152,7 +170,10 @@ class WriteBlobReactor final : public grpc::ServerReadReactor<v1::WriteBlobReque
     StartRead(&request_);
   }
 
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    calls_->Leave();
+    delete this;
+  }
 
  private:
   absl::Status Handle() {
@@ -183,6 +204,7 @@ class WriteBlobReactor final : public grpc::ServerReadReactor<v1::WriteBlobReque
     return absl::OkStatus();
   }
 
+  std::shared_ptr<CallCounter> calls_;
   BlobStore* blobs_;
   v1::WriteBlobResponse* response_;
   v1::WriteBlobRequest request_;
@@ -194,9 +216,11 @@ class WriteBlobReactor final : public grpc::ServerReadReactor<v1::WriteBlobReque
 // ReadBlob: streams [offset, end) in chunks, one write at a time.
 class ReadBlobReactor final : public grpc::ServerWriteReactor<v1::ReadBlobResponse> {
  public:
-  ReadBlobReactor(const TokenAuth& auth, grpc::CallbackServerContext* context,
-                  const BlobStore* blobs, const v1::ReadBlobRequest& request, int64_t chunkBytes)
-      : chunkBytes_(chunkBytes) {
+  ReadBlobReactor(const TokenAuth& auth, std::shared_ptr<CallCounter> calls,
+                  grpc::CallbackServerContext* context, const BlobStore* blobs,
+                  const v1::ReadBlobRequest& request, int64_t chunkBytes)
+      : calls_(std::move(calls)), chunkBytes_(chunkBytes) {
+    calls_->Enter();
     grpc::Status status = auth.Check(*context);
     if (status.ok()) status = ToGrpc(Open(blobs, request));
     if (!status.ok()) {
@@ -214,7 +238,10 @@ class ReadBlobReactor final : public grpc::ServerWriteReactor<v1::ReadBlobRespon
     NextWrite();
   }
 
-  void OnDone() override { delete this; }
+  void OnDone() override {
+    calls_->Leave();
+    delete this;
+  }
 
  private:
   absl::Status Open(const BlobStore* blobs, const v1::ReadBlobRequest& request) {
@@ -248,6 +275,7 @@ class ReadBlobReactor final : public grpc::ServerWriteReactor<v1::ReadBlobRespon
     StartWrite(&response_);
   }
 
+  std::shared_ptr<CallCounter> calls_;
   int64_t chunkBytes_;
   std::unique_ptr<BlobReader> reader_;
   int64_t position_ = 0, end_ = 0;
@@ -258,22 +286,24 @@ class ReadBlobReactor final : public grpc::ServerWriteReactor<v1::ReadBlobRespon
 
 grpc::ServerReadReactor<v1::WriteBlobRequest>* ContentStorageService::WriteBlob(
     grpc::CallbackServerContext* context, v1::WriteBlobResponse* response) {
-  return new WriteBlobReactor(*auth_, context, blobs_, response);
+  return new WriteBlobReactor(*auth_, calls_, context, blobs_, response);
 }
 
 grpc::ServerWriteReactor<v1::ReadBlobResponse>* ContentStorageService::ReadBlob(
     grpc::CallbackServerContext* context, const v1::ReadBlobRequest* request) {
-  return new ReadBlobReactor(*auth_, context, blobs_, *request, limits_.chunkBytes);
+  return new ReadBlobReactor(*auth_, calls_, context, blobs_, *request, limits_.chunkBytes);
 }
 
 // ---- BakeJobs ----
 
-BakeJobsService::BakeJobsService(std::shared_ptr<const TokenAuth> auth, JobManager* jobs)
-    : auth_(std::move(auth)), jobs_(jobs) {}
+BakeJobsService::BakeJobsService(std::shared_ptr<const TokenAuth> auth,
+                                 std::shared_ptr<CallCounter> calls, JobManager* jobs)
+    : auth_(std::move(auth)), calls_(std::move(calls)), jobs_(jobs) {}
 
 grpc::ServerUnaryReactor* BakeJobsService::CreateBakeJob(grpc::CallbackServerContext* context,
                                                          const v1::CreateBakeJobRequest* request,
                                                          v1::BakeJob* response) {
+  CallScope scope(*calls_);
   if (grpc::Status auth = auth_->Check(*context); !auth.ok()) return Done(context, auth);
   absl::StatusOr<v1::BakeJob> job = jobs_->CreateJob(*request);
   if (!job.ok()) {
@@ -291,6 +321,7 @@ grpc::ServerUnaryReactor* BakeJobsService::CreateBakeJob(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* BakeJobsService::GetBakeJob(grpc::CallbackServerContext* context,
                                                       const v1::GetBakeJobRequest* request,
                                                       v1::BakeJob* response) {
+  CallScope scope(*calls_);
   if (grpc::Status auth = auth_->Check(*context); !auth.ok()) return Done(context, auth);
   absl::StatusOr<v1::BakeJob> job =
       jobs_->GetJob(request->name(),
@@ -303,6 +334,7 @@ grpc::ServerUnaryReactor* BakeJobsService::GetBakeJob(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* BakeJobsService::ListBakeJobs(grpc::CallbackServerContext* context,
                                                         const v1::ListBakeJobsRequest* request,
                                                         v1::ListBakeJobsResponse* response) {
+  CallScope scope(*calls_);
   if (grpc::Status auth = auth_->Check(*context); !auth.ok()) return Done(context, auth);
   absl::StatusOr<v1::ListBakeJobsResponse> page = jobs_->ListJobs(*request);
   if (!page.ok()) return Done(context, page.status());
@@ -313,6 +345,7 @@ grpc::ServerUnaryReactor* BakeJobsService::ListBakeJobs(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* BakeJobsService::CancelBakeJob(grpc::CallbackServerContext* context,
                                                          const v1::CancelBakeJobRequest* request,
                                                          v1::BakeJob* response) {
+  CallScope scope(*calls_);
   if (grpc::Status auth = auth_->Check(*context); !auth.ok()) return Done(context, auth);
   absl::StatusOr<v1::BakeJob> job = jobs_->CancelJob(request->name());
   if (!job.ok()) return Done(context, job.status());
@@ -323,6 +356,7 @@ grpc::ServerUnaryReactor* BakeJobsService::CancelBakeJob(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* BakeJobsService::DeleteBakeJob(grpc::CallbackServerContext* context,
                                                          const v1::DeleteBakeJobRequest* request,
                                                          google::protobuf::Empty* /*response*/) {
+  CallScope scope(*calls_);
   if (grpc::Status auth = auth_->Check(*context); !auth.ok()) return Done(context, auth);
   return Done(context, jobs_->DeleteJob(request->name()));
 }

@@ -4,6 +4,7 @@
 // one onto gRPC codes.
 #pragma once
 
+#include <atomic>
 #include <memory>
 
 #include "probebake/v1/service.grpc.pb.h"
@@ -14,6 +15,18 @@ namespace probebake::server {
 class BlobStore;
 class JobManager;
 
+// Calls being served, so a draining server can give them time to finish and then close at once
+// (gRPC's own Shutdown deadline would also wait for idle client connections).
+class CallCounter {
+ public:
+  void Enter() { active_.fetch_add(1); }
+  void Leave() { active_.fetch_sub(1); }
+  int active() const { return active_.load(); }
+
+ private:
+  std::atomic<int> active_{0};
+};
+
 // Figures GetCapabilities reports besides the job limits.
 struct ServiceLimits {
   int64_t chunkBytes = int64_t(1) << 20;
@@ -22,21 +35,22 @@ struct ServiceLimits {
 
 class CapabilitiesService final : public v1::Capabilities::CallbackService {
  public:
-  CapabilitiesService(std::shared_ptr<const TokenAuth> auth, const JobManager* jobs,
-                      const BlobStore* blobs, ServiceLimits limits);
+  CapabilitiesService(std::shared_ptr<const TokenAuth> auth, std::shared_ptr<CallCounter> calls,
+                      const JobManager* jobs, const BlobStore* blobs, ServiceLimits limits);
   grpc::ServerUnaryReactor* GetCapabilities(grpc::CallbackServerContext* context,
                                             const v1::GetCapabilitiesRequest* request,
                                             v1::ServerCapabilities* response) override;
 
  private:
   std::shared_ptr<const TokenAuth> auth_;
+  std::shared_ptr<CallCounter> calls_;
   v1::ServerCapabilities capabilities_;
 };
 
 class ContentStorageService final : public v1::ContentStorage::CallbackService {
  public:
-  ContentStorageService(std::shared_ptr<const TokenAuth> auth, BlobStore* blobs,
-                        ServiceLimits limits);
+  ContentStorageService(std::shared_ptr<const TokenAuth> auth, std::shared_ptr<CallCounter> calls,
+                        BlobStore* blobs, ServiceLimits limits);
   grpc::ServerUnaryReactor* FindMissingBlobs(grpc::CallbackServerContext* context,
                                              const v1::FindMissingBlobsRequest* request,
                                              v1::FindMissingBlobsResponse* response) override;
@@ -50,13 +64,15 @@ class ContentStorageService final : public v1::ContentStorage::CallbackService {
 
  private:
   std::shared_ptr<const TokenAuth> auth_;
+  std::shared_ptr<CallCounter> calls_;
   BlobStore* blobs_;
   ServiceLimits limits_;
 };
 
 class BakeJobsService final : public v1::BakeJobs::CallbackService {
  public:
-  BakeJobsService(std::shared_ptr<const TokenAuth> auth, JobManager* jobs);
+  BakeJobsService(std::shared_ptr<const TokenAuth> auth, std::shared_ptr<CallCounter> calls,
+                  JobManager* jobs);
   grpc::ServerUnaryReactor* CreateBakeJob(grpc::CallbackServerContext* context,
                                           const v1::CreateBakeJobRequest* request,
                                           v1::BakeJob* response) override;
@@ -77,6 +93,7 @@ class BakeJobsService final : public v1::BakeJobs::CallbackService {
 
  private:
   std::shared_ptr<const TokenAuth> auth_;
+  std::shared_ptr<CallCounter> calls_;
   JobManager* jobs_;
 };
 

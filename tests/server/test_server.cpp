@@ -7,6 +7,7 @@
 
 #include "probebake/job/digest.h"
 #include "probebake/job/job_json.h"
+#include "server/checkpoint.h"
 
 namespace probebake::testing {
 
@@ -26,6 +27,22 @@ v1::JobSpec SmallJob(int probes, uint64_t seed) {
   auto spec = ParseJobJson(json);
   EXPECT_TRUE(spec.ok()) << spec.status();
   return spec.ok() ? *spec : v1::JobSpec();
+}
+
+void ExpectFakeVolume(const std::string& bytes, int probes, uint64_t seed) {
+  TempDir scratch;
+  std::filesystem::path file = scratch.path() / "volume.bin";
+  std::ofstream(file, std::ios::binary) << bytes;
+  auto volume = server::ReadCheckpoint(file, kFakeVolumeTag);
+  ASSERT_TRUE(volume.ok()) << volume.status();
+  const ProbeVolume& v = volume->volume;
+  ASSERT_EQ(v.grid.ProbeCount(), probes);
+  ASSERT_EQ(v.radiance.size(), 4u);
+  for (int64_t p = 0; p < probes; ++p)
+    for (int c = 0; c < 4; ++c)
+      for (int ch = 0; ch < 3; ++ch)
+        ASSERT_EQ(v.radiance[size_t(c)][size_t(3 * p + ch)], FakeProbeValue(seed, p, c, ch))
+            << "probe " << p << " coefficient " << c << " channel " << ch;
 }
 
 TestServer::TestServer(TestServerOptions options, std::filesystem::path dataDir)

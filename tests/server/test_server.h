@@ -21,6 +21,10 @@ namespace probebake::testing {
 // A job over an inline floor quad lit by a point light: `probes` probes along x, placement ALL.
 v1::JobSpec SmallJob(int probes, uint64_t seed = 1);
 
+// Checks that `bytes` is the volume the fake baker writes for SmallJob(probes, seed), value by
+// value (bit for bit).
+void ExpectFakeVolume(const std::string& bytes, int probes, uint64_t seed);
+
 struct TestServerOptions {
   std::chrono::microseconds probeDelay{2000};
   int maxConcurrentJobs = 1;

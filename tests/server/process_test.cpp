@@ -1,0 +1,194 @@
+// Process-level tests of the server with the fake baker (probebake_fake_server): SIGKILL in the
+// middle of a bake and restart, SIGTERM drain, and the data folder lock. The client side is the
+// CLI's client library.
+#include <gtest/gtest.h>
+
+#include <signal.h>
+
+#include <thread>
+
+#include "client/client.h"
+#include "subprocess.h"
+#include "test_server.h"
+
+namespace probebake::testing {
+namespace {
+
+using std::chrono::milliseconds;
+using std::chrono::seconds;
+using std::chrono::steady_clock;
+
+class FakeServerProcess {
+ public:
+  FakeServerProcess(const std::filesystem::path& dataDir, const std::filesystem::path& logFile,
+                    std::vector<std::string> extra = {}) {
+    portFile_ = dataDir.parent_path() / ("port-" + std::to_string(++counter_));
+    std::vector<std::string> argv = {PROBEBAKE_FAKE_SERVER, "--listen",       "127.0.0.1:0",
+                                     "--data-dir",          dataDir.string(), "--port-file",
+                                     portFile_.string()};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    process_ = std::make_unique<Subprocess>(argv, logFile);
+  }
+  std::optional<int> Port() { return WaitForPortFile(portFile_, seconds(20)); }
+  Subprocess& process() { return *process_; }
+
+ private:
+  static inline int counter_ = 0;
+  std::filesystem::path portFile_;
+  std::unique_ptr<Subprocess> process_;
+};
+
+std::unique_ptr<client::Client> Connect(int port) {
+  client::ConnectOptions options;
+  options.server = "127.0.0.1:" + std::to_string(port);
+  auto connected = client::Client::Connect(options);
+  EXPECT_TRUE(connected.ok()) << connected.status();
+  return connected.ok() ? std::move(*connected) : nullptr;
+}
+
+v1::BakeJob WaitProgress(client::Client& c, const std::string& name, int64_t probes) {
+  v1::BakeJob job;
+  for (int i = 0; i < 1000; ++i) {
+    auto got = c.GetJob(name);
+    EXPECT_TRUE(got.ok()) << got.status();
+    if (!got.ok()) break;
+    job = *got;
+    if (job.state() == v1::BakeJob::RUNNING && job.progress().probes_done() >= probes) break;
+    std::this_thread::sleep_for(milliseconds(10));
+  }
+  return job;
+}
+
+std::string FetchBytes(client::Client& c, const v1::Digest& digest,
+                       const std::filesystem::path& dir) {
+  std::filesystem::path out = dir / (digest.hash() + ".bin");
+  absl::Status fetched = c.FetchBlob(digest, out);
+  EXPECT_TRUE(fetched.ok()) << fetched;
+  return ReadFile(out);
+}
+
+TEST(ServerProcess, SigkillMidBakeThenRestartCompletesOnceWithTheSameBits) {
+  TempDir dir;
+  auto data = dir.path() / "data";
+  auto log = dir.path() / "server.log";
+  const int probes = 300;
+  std::string nameA, nameB;
+  int64_t doneAtKill = 0;
+  {
+    FakeServerProcess server(data, log,
+                             {"--probe-delay-us", "5000", "--checkpoint-interval", "0.05"});
+    auto port = server.Port();
+    ASSERT_TRUE(port) << ReadFile(log);
+    auto c = Connect(*port);
+    ASSERT_TRUE(c);
+    auto a = c->CreateJob(SmallJob(probes, 11), "kill-a", false);
+    auto b = c->CreateJob(SmallJob(20, 12), "kill-b", false);  // queued behind a
+    ASSERT_TRUE(a.ok() && b.ok());
+    nameA = a->name();
+    nameB = b->name();
+    v1::BakeJob running = WaitProgress(*c, nameA, 100);
+    ASSERT_EQ(running.state(), v1::BakeJob::RUNNING);
+    doneAtKill = running.progress().probes_done();
+    server.process().Signal(SIGKILL);
+    EXPECT_EQ(server.process().Wait(seconds(10)), -SIGKILL);
+  }
+  auto restartStart = steady_clock::now();
+  FakeServerProcess server(data, log,
+                           {"--probe-delay-us", "5000", "--checkpoint-interval", "0.05"});
+  auto port = server.Port();
+  ASSERT_TRUE(port) << ReadFile(log);
+  double servingSeconds = SecondsSince(restartStart);
+  auto c = Connect(*port);
+  ASSERT_TRUE(c);
+  // The request ids still name the same jobs: nothing was lost or duplicated.
+  auto again = c->CreateJob(SmallJob(probes, 11), "kill-a", false);
+  ASSERT_TRUE(again.ok());
+  EXPECT_EQ(again->name(), nameA);
+  auto finalA = c->Watch(nameA, [](const v1::BakeJob&) {});
+  ASSERT_TRUE(finalA.ok()) << finalA.status();
+  double completeSeconds = SecondsSince(restartStart);
+  EXPECT_EQ(finalA->state(), v1::BakeJob::SUCCEEDED) << finalA->DebugString();
+  EXPECT_EQ(finalA->attempts(), 2);
+  // It resumed from a checkpoint taken at most one interval (50 ms = 10 probes) before the kill.
+  EXPECT_GT(finalA->progress().probes_resumed(), 0);
+  EXPECT_LE(finalA->progress().probes_resumed(), doneAtKill);
+  auto finalB = c->Watch(nameB, [](const v1::BakeJob&) {});
+  ASSERT_TRUE(finalB.ok());
+  EXPECT_EQ(finalB->state(), v1::BakeJob::SUCCEEDED);
+  EXPECT_EQ(finalB->attempts(), 1);
+  auto list = c->ListJobs(100, "");
+  ASSERT_TRUE(list.ok());
+  EXPECT_EQ(list->bake_jobs_size(), 2);
+  // Bits: the expected values, and the same digest as an uninterrupted bake of the job.
+  ExpectFakeVolume(FetchBytes(*c, finalA->result().volume(), dir.path()), probes, 11);
+  auto fresh = c->CreateJob(SmallJob(probes, 11), "", /*skipCache=*/true);
+  ASSERT_TRUE(fresh.ok());
+  auto freshFinal = c->Watch(fresh->name(), [](const v1::BakeJob&) {});
+  ASSERT_TRUE(freshFinal.ok());
+  EXPECT_EQ(freshFinal->result().volume().hash(), finalA->result().volume().hash());
+  std::printf(
+      "killed at %lld/%d probes; restart serving after %.3f s; resumed %lld probes; "
+      "job done %.3f s after restart\n",
+      (long long)doneAtKill, probes, servingSeconds, (long long)finalA->progress().probes_resumed(),
+      completeSeconds);
+  server.process().Signal(SIGTERM);
+  EXPECT_EQ(server.process().Wait(seconds(10)), 0);
+}
+
+TEST(ServerProcess, SigtermDrainsRequeuesAndExitsZero) {
+  TempDir dir;
+  auto data = dir.path() / "data";
+  auto log = dir.path() / "server.log";
+  std::string name;
+  {
+    FakeServerProcess server(data, log,
+                             {"--probe-delay-us", "10000", "--checkpoint-interval", "0.1"});
+    auto port = server.Port();
+    ASSERT_TRUE(port) << ReadFile(log);
+    auto c = Connect(*port);
+    auto job = c->CreateJob(SmallJob(400, 21), "", false);
+    ASSERT_TRUE(job.ok());
+    name = job->name();
+    ASSERT_EQ(WaitProgress(*c, name, 10).state(), v1::BakeJob::RUNNING);
+    // A watcher is told UNAVAILABLE (come back later), not a final state.
+    absl::StatusOr<v1::BakeJob> watched;
+    std::thread watcher([&] {
+      watched = c->Watch(
+          name, [](const v1::BakeJob&) {}, seconds(0));
+    });
+    std::this_thread::sleep_for(milliseconds(100));
+    auto start = steady_clock::now();
+    server.process().Signal(SIGTERM);
+    EXPECT_EQ(server.process().Wait(seconds(10)), 0) << ReadFile(log);
+    double drainSeconds = SecondsSince(start);
+    EXPECT_LT(drainSeconds, 3.0);
+    watcher.join();
+    EXPECT_EQ(watched.status().code(), absl::StatusCode::kUnavailable) << watched.status();
+    std::printf("SIGTERM to exit: %.3f s\n", drainSeconds);
+  }
+  FakeServerProcess server(data, log, {"--probe-delay-us", "1000"});
+  auto port = server.Port();
+  ASSERT_TRUE(port);
+  auto c = Connect(*port);
+  auto final = c->Watch(name, [](const v1::BakeJob&) {});
+  ASSERT_TRUE(final.ok());
+  EXPECT_EQ(final->state(), v1::BakeJob::SUCCEEDED);
+  EXPECT_EQ(final->attempts(), 2);
+  EXPECT_GT(final->progress().probes_resumed(), 0);
+}
+
+TEST(ServerProcess, OneServerPerDataFolder) {
+  TempDir dir;
+  auto data = dir.path() / "data";
+  auto log = dir.path() / "server.log";
+  FakeServerProcess first(data, log);
+  ASSERT_TRUE(first.Port());
+  FakeServerProcess second(data, dir.path() / "second.log");
+  EXPECT_EQ(second.process().Wait(seconds(20)), 1);
+  EXPECT_NE(ReadFile(dir.path() / "second.log").find("in use by another probebake-server"),
+            std::string::npos)
+      << ReadFile(dir.path() / "second.log");
+}
+
+}  // namespace
+}  // namespace probebake::testing
