@@ -134,11 +134,13 @@ inline std::vector<double> CapProjection(int order, Vec3d axis, double cosMax) {
   return out;
 }
 
-// int over the parallelogram corner + s e1 + t e2 of Y(w(q)) |cos_q| / r^2 dA seen from p (the
-// projection of the solid angle it covers), by a product Gauss-Legendre rule: the integrand is
-// smooth when p is well away from the plane, and 64 x 64 nodes reach ~1e-12.
-inline std::vector<double> ParallelogramProjection(int order, Vec3d p, Vec3d corner, Vec3d e1,
-                                                   Vec3d e2, int nodes = 64) {
+// int over the parallelogram corner + s e1 + t e2 of weight(q) Y(w(q)) |cos_q| / r^2 dA seen
+// from p (the projection of the solid angle it covers, weighted), by a product Gauss-Legendre
+// rule: the integrand is smooth when p is well away from the plane, and 64 x 64 nodes reach
+// ~1e-12.
+template <typename Weight>
+std::vector<double> WeightedParallelogramProjection(int order, Vec3d p, Vec3d corner, Vec3d e1,
+                                                    Vec3d e2, Weight&& weight, int nodes = 64) {
   const QuadratureRule1D rule = GaussLegendreRule(nodes);
   const Vec3d n = Cross(e1, e2);
   const double area = Length(n);
@@ -147,15 +149,23 @@ inline std::vector<double> ParallelogramProjection(int order, Vec3d p, Vec3d cor
     for (int j = 0; j < nodes; ++j) {
       const double s = 0.5 * (rule.nodes[i] + 1), t = 0.5 * (rule.nodes[j] + 1);
       const double w = 0.25 * rule.weights[i] * rule.weights[j] * area;
-      const Vec3d v = corner + e1 * s + e2 * t - p;
+      const Vec3d q = corner + e1 * s + e2 * t;
+      const Vec3d v = q - p;
       const double r2 = LengthSquared(v);
       const Vec3d wi = v / std::sqrt(r2);
       const double cosq = std::abs(Dot(wi, n)) / area;
       EvalShBasis(order, wi, y.data());
-      for (size_t k = 0; k < out.size(); ++k) out[k] += w * y[k] * cosq / r2;
+      const double f = weight(q);
+      for (size_t k = 0; k < out.size(); ++k) out[k] += w * f * y[k] * cosq / r2;
     }
   }
   return out;
+}
+
+inline std::vector<double> ParallelogramProjection(int order, Vec3d p, Vec3d corner, Vec3d e1,
+                                                   Vec3d e2) {
+  return WeightedParallelogramProjection(order, p, corner, e1, e2,
+                                         [](const Vec3d&) { return 1.0; });
 }
 
 // Expects baked radiance coefficients to match radiance[c] * projection[c] (per channel).

@@ -285,9 +285,10 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
           TraceCounters exactCounters;
           for (uint32_t light : lights.deltaLights()) {
             LightSample s;
-            if (lights.EvalDelta(light, p, &s) &&
-                integrator.Unoccluded(Vec3f(p), s, &exactCounters))
-              estimate.AddExact(settings.shOrder, s.wi, s.radiance);
+            if (!lights.EvalDelta(light, p, &s)) continue;
+            // Visibility, times the medium's transmittance when there is one.
+            const Vec3d tr = integrator.ShadowTransmittance(Vec3f(p), s, &exactCounters);
+            if (MaxComponent(tr) > 0) estimate.AddExact(settings.shOrder, s.wi, s.radiance * tr);
           }
           counters.Add(exactCounters);
 

@@ -39,6 +39,7 @@ double BalanceHeuristic(double pdfA, double pdfB) {
 ProbeIntegrator::ProbeIntegrator(const Scene& scene, const TracerScene& tracer,
                                  const LightSet& lights, const BakeSettings& settings)
     : scene_(scene), tracer_(tracer), lights_(lights), settings_(settings) {
+  if (scene.medium) medium_.emplace(*scene.medium, tracer.offset());
   switch (settings.estimator) {
     case Estimator::kNeeMis:
       lightSampling_ = true, countEmission_ = true, mis_ = true;
@@ -52,10 +53,14 @@ ProbeIntegrator::ProbeIntegrator(const Scene& scene, const TracerScene& tracer,
   }
 }
 
-bool ProbeIntegrator::Unoccluded(const Vec3f& origin, const LightSample& s,
-                                 TraceCounters* counters) const {
+bool ProbeIntegrator::Unoccluded(const Vec3f& origin, const LightSample& s, TraceCounters* counters,
+                                 Vec3d* dir, double* tMax) const {
   ++counters->rays;
-  if (!std::isfinite(s.distance)) return !tracer_.Occluded(origin, s.wi, kInf);
+  if (!std::isfinite(s.distance)) {
+    *dir = s.wi;
+    *tMax = kInf;
+    return !tracer_.Occluded(origin, s.wi, kInf);
+  }
   // Aim from the ray's actual origin (offset off its surface, not the shading point itself) at
   // the sampled point, and stop short of the light's own surface by the float error of the
   // coordinates involved: otherwise grazing shadow rays end beyond the light and hit it.
@@ -63,25 +68,46 @@ bool ProbeIntegrator::Unoccluded(const Vec3f& origin, const LightSample& s,
   const Vec3d v = s.point - o;
   const double d = Length(v);
   const double maxAbs = std::max(MaxComponent(Abs(o)), MaxComponent(Abs(s.point)));
-  const double tMax = d - FloatSlack(maxAbs);
-  if (tMax <= 0) return true;
-  return !tracer_.Occluded(origin, v / d, tMax);
+  *tMax = d - FloatSlack(maxAbs);
+  *dir = d > 0 ? v / d : s.wi;
+  if (*tMax <= 0) return true;
+  return !tracer_.Occluded(origin, *dir, *tMax);
+}
+
+template <bool kMedium>
+Vec3d ProbeIntegrator::Shadow(const Vec3f& origin, const LightSample& s,
+                              TraceCounters* counters) const {
+  Vec3d dir;
+  double tMax;
+  if (!Unoccluded(origin, s, counters, &dir, &tMax)) return {};
+  if constexpr (kMedium) return medium_->Transmittance(Vec3d(origin), dir, std::max(tMax, 0.0));
+  return {1, 1, 1};
+}
+
+Vec3d ProbeIntegrator::ShadowTransmittance(const Vec3f& origin, const LightSample& s,
+                                           TraceCounters* counters) const {
+  return medium_ ? Shadow<true>(origin, s, counters) : Shadow<false>(origin, s, counters);
 }
 
 bool ProbeIntegrator::TraceBatch(const Vec3d& p, uint64_t probe, uint32_t batch, int64_t count,
                                  std::span<double> sum, SharedCounters* shared,
                                  const std::atomic<bool>* cancel) const {
-  if (settings_.sampler == SamplerKind::kSobol)
-    return TraceBatchWith<SobolSampler>(p, probe, batch, count, sum, shared, cancel);
-  return TraceBatchWith<IndependentSampler>(p, probe, batch, count, sum, shared, cancel);
+  const bool sobol = settings_.sampler == SamplerKind::kSobol;
+  if (medium_) {
+    return sobol ? TraceBatchWith<true, SobolSampler>(p, probe, batch, count, sum, shared, cancel)
+                 : TraceBatchWith<true, IndependentSampler>(p, probe, batch, count, sum, shared,
+                                                            cancel);
+  }
+  return sobol ? TraceBatchWith<false, SobolSampler>(p, probe, batch, count, sum, shared, cancel)
+               : TraceBatchWith<false, IndependentSampler>(p, probe, batch, count, sum, shared,
+                                                           cancel);
 }
 
-template <typename S>
+template <bool kMedium, typename S>
 bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probe, uint32_t batch, int64_t count,
                                      std::span<double> sum, SharedCounters* shared,
                                      const std::atomic<bool>* cancel) const {
   TraceCounters local;
-  TraceCounters* counters = &local;
   const int order = settings_.shOrder;
   const Vec3f origin(p);
   S sampler(settings_.seed, Hash(probe, uint64_t(batch)));
@@ -103,25 +129,27 @@ bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probe, uint32_t ba
 
     if (lightSampling_ && totalProbe > 0) {
       LightSample ls;
-      if (lights_.Sample(p, nullptr, importanceProbe, totalProbe, uSelect, uLight, &ls) &&
-          Unoccluded(origin, ls, counters)) {
-        const double w = mis_ ? BalanceHeuristic(ls.pdf, pdfProbe) : 1.0;
-        Project(order, ls.wi, ls.radiance * (w / ls.pdf), sum);
+      if (lights_.Sample(p, nullptr, importanceProbe, totalProbe, uSelect, uLight, &ls)) {
+        const Vec3d tr = Shadow<kMedium>(origin, ls, &local);
+        if (MaxComponent(tr) > 0) {
+          const double w = mis_ ? BalanceHeuristic(ls.pdf, pdfProbe) : 1.0;
+          Project(order, ls.wi, ls.radiance * tr * (w / ls.pdf), sum);
+        }
       }
     }
 
     const Vec3d wi = SampleUniformSphere(uDirection);
     std::copy(importanceProbe.begin(), importanceProbe.end(), scratchA.begin());
-    const Vec3d radiance =
-        TracePath(origin, p, wi, pdfProbe, scratchA, totalProbe, scratchB, sampler, counters);
+    const Vec3d radiance = TracePath<kMedium>(origin, p, wi, pdfProbe, scratchA, totalProbe,
+                                              scratchB, sampler, &local);
     if (MaxComponent(radiance) > 0) Project(order, wi, radiance / pdfProbe, sum);
-    ++counters->samples;
+    ++local.samples;
   }
   if (shared) shared->Add(local);
   return true;
 }
 
-template <typename S>
+template <bool kMedium, typename S>
 Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d wi, double pdfDir,
                                  std::span<double> importancePrev, double totalPrev,
                                  std::span<double> scratch, S& sampler,
@@ -130,11 +158,62 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
   Vec3f origin = originIn;
   Vec3d pPrev = pIn;
   Vec3d nPrevStorage;
-  const Vec3d* nPrev = nullptr;  // the probe has no surface
+  const Vec3d* nPrev = nullptr;  // the probe and medium vertices have no surface
   for (int bounce = 1;; ++bounce) {
     SurfaceHit hit;
     ++counters->rays;
-    if (!tracer_.Intersect(origin, wi, kInf, &hit)) {
+    const bool found = tracer_.Intersect(origin, wi, kInf, &hit);
+
+    if constexpr (kMedium) {
+      const double uChannel = sampler.Get1D();
+      const double uDistance = sampler.Get1D();
+      const MediumSample ms =
+          medium_->Sample(Vec3d(origin), wi, found ? hit.t : kInf, uChannel, uDistance);
+      beta *= ms.weight;
+      if (ms.scattered) {
+        const Vec3d x = Vec3d(origin) + wi * ms.t;
+        const double uSelect = sampler.Get1D();
+        const Vec2d uLight = sampler.Get2D();
+        const Vec2d uContinue = sampler.Get2D();
+        const double uRoulette = sampler.Get1D();
+        if (bounce > settings_.maxDepth || MaxComponent(beta) <= 0) break;
+        const Vec3f xf(x);
+        const double g = medium_->g();
+        const double total = lights_.Importance(x, nullptr, /*includeDelta=*/true, scratch);
+        if (lightSampling_ && total > 0) {
+          LightSample ls;
+          if (lights_.Sample(x, nullptr, scratch, total, uSelect, uLight, &ls)) {
+            // Light propagating along -ls.wi leaves along -wi: cos theta = Dot(ls.wi, wi).
+            const double phase = HenyeyGreensteinPdf(Dot(ls.wi, wi), g);
+            const Vec3d tr = Shadow<true>(xf, ls, counters);
+            if (MaxComponent(tr) > 0) {
+              const double w = (mis_ && !ls.delta) ? BalanceHeuristic(ls.pdf, phase) : 1.0;
+              radiance += beta * ls.radiance * tr * (phase * w / ls.pdf);
+            }
+          }
+        }
+        // Sample where the light came from: its propagation direction dIn is HG-distributed about
+        // the outgoing one, -wi (the phase function is symmetric in the two).
+        const Vec3d local = SampleHenyeyGreenstein(uContinue, g);
+        const Vec3d dIn = Framed::FromZ(-wi).FromLocal(local);
+        pdfDir = HenyeyGreensteinPdf(local.z, g);  // phase / pdf = 1: beta is unchanged
+        if (settings_.russianRoulette && bounce >= settings_.rrMinDepth) {
+          const double survive = std::min(1.0, MaxComponent(beta));
+          if (uRoulette >= survive) break;
+          beta = beta / survive;
+        }
+        wi = Normalize(-dIn);
+        origin = xf;
+        pPrev = x;
+        nPrev = nullptr;
+        std::swap(importancePrev, scratch);
+        totalPrev = total;
+        continue;
+      }
+      if (MaxComponent(beta) <= 0) break;
+    }
+
+    if (!found) {
       if (countEmission_) {
         lights_.ForEachEscaped(nPrev, importancePrev, totalPrev, wi, [&](const LightHit& h) {
           const double w = mis_ ? BalanceHeuristic(pdfDir, h.pdf) : 1.0;
@@ -169,10 +248,13 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
       LightSample ls;
       if (lights_.Sample(hit.p, &n, scratch, total, uSelect, uLight, &ls)) {
         const double cosTheta = Dot(ls.wi, n);
-        if (cosTheta > 0 && Unoccluded(spawn, ls, counters)) {
-          const double pdfBsdf = cosTheta * kInvPi;
-          const double w = (mis_ && !ls.delta) ? BalanceHeuristic(ls.pdf, pdfBsdf) : 1.0;
-          radiance += beta * albedo * ls.radiance * (kInvPi * cosTheta * w / ls.pdf);
+        if (cosTheta > 0) {
+          const Vec3d tr = Shadow<kMedium>(spawn, ls, counters);
+          if (MaxComponent(tr) > 0) {
+            const double pdfBsdf = cosTheta * kInvPi;
+            const double w = (mis_ && !ls.delta) ? BalanceHeuristic(ls.pdf, pdfBsdf) : 1.0;
+            radiance += beta * albedo * ls.radiance * tr * (kInvPi * cosTheta * w / ls.pdf);
+          }
         }
       }
     }

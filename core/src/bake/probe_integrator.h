@@ -14,18 +14,27 @@
 // seen directly are always counted). Delta lights at the probe are not sampled here: the bake
 // projects them exactly (bake.cpp).
 //
+// With a medium (medium.h), every ray segment may end in a scattering event inside it: such a
+// vertex counts toward maxDepth like a surface, is shaded by the Henyey-Greenstein phase function
+// (light sampling and phase sampling combined by the same MIS), and shadow rays and escaping rays
+// carry the medium's transmittance. Scenes without a medium run a separate instantiation that has
+// none of this.
+//
 // Random dimensions per sample, always consumed in this order so each dimension keeps one meaning
 // across samples (what quasi-Monte Carlo stratification needs): probe direction (2D), light
-// choice (1D), light point (2D); then per scattering vertex: light choice (1D), light point (2D),
-// continuation (2D), roulette (1D).
+// choice (1D), light point (2D); then per path segment, with a medium only: channel (1D) and
+// distance (1D); then per scattering vertex: light choice (1D), light point (2D), continuation
+// (2D), roulette (1D).
 #pragma once
 
 #include <atomic>
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <vector>
 
 #include "light_set.h"
+#include "medium.h"
 #include "probebake/math/vec3.h"
 #include "probebake/scene/scene.h"
 #include "tracer_scene.h"
@@ -60,23 +69,32 @@ class ProbeIntegrator {
                   std::span<double> sum, SharedCounters* shared,
                   const std::atomic<bool>* cancel) const;
 
-  // True when nothing lies between `origin` and the sampled light point.
-  bool Unoccluded(const Vec3f& origin, const LightSample& s, TraceCounters* counters) const;
+  // Fraction of the sampled light's radiance that reaches `origin`: 0 when occluded, else the
+  // medium's transmittance (1 without a medium).
+  Vec3d ShadowTransmittance(const Vec3f& origin, const LightSample& s,
+                            TraceCounters* counters) const;
 
  private:
-  template <typename S>
+  template <bool kMedium, typename S>
   bool TraceBatchWith(const Vec3d& p, uint64_t probe, uint32_t batch, int64_t count,
                       std::span<double> sum, SharedCounters* shared,
                       const std::atomic<bool>* cancel) const;
-  template <typename S>
+  template <bool kMedium, typename S>
   Vec3d TracePath(const Vec3f& origin, const Vec3d& p, Vec3d wi, double pdfDir,
                   std::span<double> importancePrev, double totalPrev, std::span<double> scratch,
                   S& sampler, TraceCounters* counters) const;
+  // True when nothing lies between `origin` and the sampled light point; `dir` and `tMax` get
+  // the shadow ray actually traced.
+  bool Unoccluded(const Vec3f& origin, const LightSample& s, TraceCounters* counters, Vec3d* dir,
+                  double* tMax) const;
+  template <bool kMedium>
+  Vec3d Shadow(const Vec3f& origin, const LightSample& s, TraceCounters* counters) const;
 
   const Scene& scene_;
   const TracerScene& tracer_;
   const LightSet& lights_;
   const BakeSettings& settings_;
+  std::optional<HomogeneousMedium> medium_;
   bool lightSampling_;  // NEE on
   bool countEmission_;  // direction-sampled rays count the emission they hit
   bool mis_;            // weight the two by the balance heuristic
