@@ -9,19 +9,23 @@
 // is a positive operator and obeys the minimum principle: the minimum over the sphere of the
 // windowed irradiance is non-decreasing in t. So "the weakest window that makes the irradiance
 // non-negative" is well defined: t* = min{t >= 0 : E_t(ω) >= 0 for all ω and all three RGB
-// channels}, found by bisection on t, and every t < t* leaves a negative value somewhere.
-// Radiance whose irradiance is already non-negative gives t* = 0 (the input is unchanged).
+// channels}, bracketed by a root search on t (Brent's method) to relative width 1e-10, and
+// every t below the bracket leaves a negative value somewhere. Radiance whose irradiance is
+// already non-negative gives t* = 0 (the input is unchanged).
 //  - Orders <= 3 (irradiance bands 0, 1, 2 only, since Â_3 = 0): E(ω) = c + b·ω + ωᵀAω is a
 //    quadratic form on the sphere, minimised exactly through the eigenvectors of A and the dual
-//    max_{μ <= λmin} μ - Σ β_i² / (4(λ_i - μ)), which is a certified lower bound for every μ
-//    and tight at its maximiser (trust-region duality). The bisection therefore returns a t
-//    whose irradiance is provably non-negative (up to rounding).
-//  - Orders >= 4: a deterministic grid (spacing π/(2 L_E + 2), L_E the highest irradiance
-//    band) gives each point's per-band values once; the bisection runs on the grid minimum, then
-//    grid local minima that a Bernstein bound cannot clear are refined by Newton's method on
-//    the sphere; refined minima that are still negative join the grid and the bisection resumes
-//    above. A first sufficient test (band amplitudes, addition theorem) clears most probes with
-//    no grid work at all.
+//    max_{μ <= λmin} μ - Σ β_i² / (4(λ_i - μ)), which is a lower bound for every μ and tight at
+//    its maximiser (trust-region duality). The returned t is therefore proven non-negative (up
+//    to rounding, ~1e-16 of the irradiance).
+//  - Orders >= 4: a deterministic grid (spacing π/(2 L_E + 2), L_E the highest irradiance band)
+//    gives each point's per-band values once; the root search runs on the grid minimum; then the
+//    grid's local minima below a Bernstein bound (the most a minimum between grid points can
+//    undercut them) are refined by Newton's method on the sphere, and refined minima that are
+//    still negative join the grid for another search above. This is a search, not a proof: a
+//    negative basin narrower than the grid spacing whose nearest grid point is not a local grid
+//    minimum could be missed. Tests check the result against an independent dense minimiser.
+//  - Both: a first sufficient test (band amplitudes, addition theorem) clears most already
+//    non-negative probes with no further work.
 // Cost per probe: benchmark BM_AutoWindowRinging (probebake_sh_bench); probes that are already
 // non-negative mostly stop at the amplitude test.
 //
