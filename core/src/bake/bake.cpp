@@ -158,8 +158,6 @@ absl::Status CheckSettings(const BakeJob& job) {
     return FieldError("settings.samplesPerProbe", "must be in [1, 2^32)");
   if (s.maxDepth < 1) return FieldError("settings.maxDepth", "must be >= 1");
   if (s.batches < 1) return FieldError("settings.batches", "must be >= 1");
-  if (s.window != ShWindow::kNone)
-    return FieldError("settings.window", "windows are not supported by this baker yet");
   for (int a = 0; a < 3; ++a) {
     if (job.grid.counts[a] < 1) return FieldError("grid.counts", "must be >= 1 on every axis");
     if (!(job.grid.spacing[a] > 0)) return FieldError("grid.spacing", "must be > 0");
@@ -196,6 +194,8 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   volume.radiance.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
   if (settings.irradiance)
     volume.irradiance.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
+  if (settings.irradiance && settings.window == ShWindow::kAuto)
+    volume.autoWindowT.assign(probeCount, 0.0f);
   if (options.coefficientErrors)
     volume.radianceStdError.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
 
@@ -324,6 +324,16 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
     return absl::CancelledError("bake cancelled");
   }
 
+  if (!volume.autoWindowT.empty()) {
+    int64_t windowed = 0;
+    double maxT = 0;
+    for (int64_t p = 0; p < probeCount; ++p) {
+      if (!volume.active[p] || volume.autoWindowT[p] <= 0) continue;
+      ++windowed;
+      maxT = std::max(maxT, double(volume.autoWindowT[p]));
+    }
+    volume.window = AutoWindowSummary(windowed, activeCount, maxT);
+  }
   volume.stats.wallSeconds = Seconds(start);
   volume.stats.threads = threads;
   volume.stats.probes = activeCount;

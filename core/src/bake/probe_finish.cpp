@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <sstream>
 
 #include "probebake/base/check.h"
 #include "probebake/sh/sh_basis.h"
@@ -89,37 +90,44 @@ double ProbeEstimate::RelativeError(int batches) const {
   return mean != 0 ? se / std::abs(mean) : std::numeric_limits<double>::infinity();
 }
 
-ProbeFinisher::ProbeFinisher(const BakeSettings& settings) : settings_(settings) {}
-
-std::string ProbeFinisher::WindowName() const {
-  switch (settings_.window) {
-    case ShWindow::kNone:
-      return "NONE";
-    case ShWindow::kHanning: {
-      char buf[64];
-      std::snprintf(buf, sizeof buf, "HANNING(width=%.17g)", settings_.windowWidth);
-      return buf;
-    }
-    case ShWindow::kLanczos:
-      return "LANCZOS";
-    case ShWindow::kAuto:
-      return "AUTO";
-  }
-  return "NONE";
+ProbeFinisher::ProbeFinisher(const BakeSettings& settings) : settings_(settings) {
+  if (settings.window == ShWindow::kHanning) window_ = ShBandWindow::Hanning(settings.windowWidth);
+  if (settings.window == ShWindow::kLanczos) window_ = ShBandWindow::Lanczos();
 }
 
-void ProbeFinisher::Finish(const ProbeEstimate& estimate, int batches, int64_t probe,
-                           ProbeVolume* volume) const {
+std::string ProbeFinisher::WindowName() const {
+  if (settings_.window == ShWindow::kAuto) return "AUTO";
+  return window_.ToString();
+}
+
+std::string AutoWindowSummary(int64_t windowed, int64_t probes, double maxT) {
+  std::ostringstream s;
+  s.precision(6);
+  s << "AUTO(heat exp(-t l(l+1)) per probe; " << windowed << " of " << probes
+    << " probes windowed, max t=" << maxT << ")";
+  return s.str();
+}
+
+double ProbeFinisher::Finish(const ProbeEstimate& estimate, int batches, int64_t probe,
+                             ProbeVolume* volume) const {
   const int order = settings_.shOrder;
   const int coeffs = ShCoeffCount(order);
   const std::vector<double> mean = estimate.Mean(batches);
   for (int c = 0; c < coeffs; ++c)
     for (int ch = 0; ch < 3; ++ch) volume->radiance[c][3 * probe + ch] = float(mean[3 * c + ch]);
+  double autoT = 0;
   if (!volume->irradiance.empty()) {
     std::vector<Vec3d> radiance(coeffs), irradiance(coeffs);
     for (int c = 0; c < coeffs; ++c) radiance[c] = {mean[3 * c], mean[3 * c + 1], mean[3 * c + 2]};
     RadianceToIrradianceRgb(order, radiance, irradiance);
-    if (!windowFactors_.empty()) ScaleBandsRgb(order, windowFactors_, irradiance, irradiance);
+    if (settings_.window == ShWindow::kAuto) {
+      const AutoWindowResult chosen = FindAutoShWindow(order, radiance);
+      ApplyShWindowRgb(chosen.window, order, irradiance);
+      autoT = chosen.window.parameter;
+      if (!volume->autoWindowT.empty()) volume->autoWindowT[probe] = float(autoT);
+    } else {
+      ApplyShWindowRgb(window_, order, irradiance);
+    }
     for (int c = 0; c < coeffs; ++c) {
       volume->irradiance[c][3 * probe] = float(irradiance[c].x);
       volume->irradiance[c][3 * probe + 1] = float(irradiance[c].y);
@@ -134,6 +142,7 @@ void ProbeFinisher::Finish(const ProbeEstimate& estimate, int batches, int64_t p
   }
   volume->stdError[probe] = float(estimate.RelativeError(batches));
   volume->sampleCount[probe] = float(estimate.Samples(batches));
+  return autoT;
 }
 
 ProbeVolume EmptyLike(const ProbeVolume& v) {
@@ -147,6 +156,7 @@ ProbeVolume EmptyLike(const ProbeVolume& v) {
   out.radiance.assign(v.radiance.size(), std::vector<float>(planeSize, 0.0f));
   out.irradiance.assign(v.irradiance.size(), std::vector<float>(planeSize, 0.0f));
   out.radianceStdError.assign(v.radianceStdError.size(), std::vector<float>(planeSize, 0.0f));
+  out.autoWindowT.assign(v.autoWindowT.size(), 0.0f);
   out.stdError.assign(v.stdError.size(), 0.0f);
   out.sampleCount.assign(v.sampleCount.size(), 0.0f);
   return out;
@@ -164,6 +174,8 @@ void CopyProbe(const ProbeVolume& from, int64_t probe, ProbeVolume* to) {
     for (size_t c = 0; c < to->radianceStdError.size(); ++c)
       for (int ch = 0; ch < 3; ++ch)
         to->radianceStdError[c][3 * probe + ch] = from.radianceStdError[c][3 * probe + ch];
+  if (!to->autoWindowT.empty() && from.autoWindowT.size() == to->autoWindowT.size())
+    to->autoWindowT[probe] = from.autoWindowT[probe];
   to->stdError[probe] = from.stdError[probe];
   to->sampleCount[probe] = from.sampleCount[probe];
 }

@@ -17,6 +17,7 @@
 #include "probebake/bake/probe_volume.h"
 #include "probebake/math/vec3.h"
 #include "probebake/scene/scene.h"
+#include "probebake/sh/sh_window.h"
 
 namespace probebake {
 
@@ -51,16 +52,23 @@ class ProbeEstimate {
 class ProbeFinisher {
  public:
   explicit ProbeFinisher(const BakeSettings& settings);
-  // The window as recorded in the file's sh_window metadata.
+  // The window as recorded in the file's sh_window metadata: NONE, HANNING(width=W), LANCZOS, or
+  // for AUTO a summary of the per-probe heat windows (AutoWindowSummary).
   std::string WindowName() const;
   // Stores the estimate of the first `batches` batches as probe `probe` of `volume` (radiance,
-  // irradiance and window when requested, std_error, sample_count).
-  void Finish(const ProbeEstimate& estimate, int batches, int64_t probe, ProbeVolume* volume) const;
+  // irradiance and window when requested, std_error, sample_count). Returns the AUTO window's
+  // heat parameter t chosen for this probe (0: left unwindowed; 0 for other windows).
+  double Finish(const ProbeEstimate& estimate, int batches, int64_t probe,
+                ProbeVolume* volume) const;
 
  private:
   const BakeSettings& settings_;
-  std::vector<double> windowFactors_;  // HANNING, LANCZOS: per band
+  ShBandWindow window_;  // HANNING, LANCZOS: fixed; AUTO: chosen per probe
 };
+
+// sh_window metadata for AUTO: "AUTO(heat exp(-t l(l+1)) per probe; <n> of <m> probes windowed,
+// max t=<t>)".
+std::string AutoWindowSummary(int64_t windowed, int64_t probes, double maxT);
 
 // A volume with the layout of `v` (grid, order, active mask, validity, window, planes) whose
 // per-probe values are all zero.

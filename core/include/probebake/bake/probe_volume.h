@@ -35,6 +35,9 @@ struct ProbeVolume {
   // and channel, same layout as `radiance`, absolute (radiance units). Not written to files; for
   // tests and the accuracy benchmark.
   std::vector<std::vector<float>> radianceStdError;
+  // Per probe, with the AUTO window only: the heat window's t chosen for the probe's irradiance
+  // (0: unwindowed). Summarised in `window`; not written as a grid.
+  std::vector<float> autoWindowT;
   std::vector<float> validity;     // per probe: 1 valid, 0 inside geometry
   std::vector<float> stdError;     // per probe: relative standard error of luminance L0
   std::vector<float> sampleCount;  // per probe: sample paths taken
