@@ -34,7 +34,7 @@ done
 SERVER=127.0.0.1:$(cat "$WORK/port")
 echo "demo: probebake-server listening on $SERVER (log: $OUT/demo-server.log)"
 
-"$BIN/probebake" submit tests/data/demo/demo.json --server "$SERVER" --skip-cache -o "$OUT/demo.vdb"
+"$BIN/probebake" submit tests/data/demo/demo.json --server "$SERVER" -o "$OUT/demo.vdb"
 "$BIN/probebake" inspect "$OUT/demo.vdb"
 "$BIN/probebake" inspect "$OUT/demo.vdb" --slice z=1.0 -o "$OUT/demo-slice-z1.png"
 "$BIN/probebake" inspect "$OUT/demo.vdb" --slice x=0.0 -o "$OUT/demo-slice-x0.png"
