@@ -247,10 +247,12 @@ int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
   absl::StatusOr<v1::BakeJob> job = (*client)->CreateJob(*spec, requestId, skipCache);
   if (!job.ok()) return Fail(job.status(), jobPath);
   ProgressView view(ProgressView::Choose(flags.json));
-  if (flags.json)
+  if (flags.json) {
     std::printf("%s\n", JobJson(*job).c_str());
-  else
+  } else {
     std::printf("%s\n", JobSummary(*job).c_str());
+    view.Seen(*job);
+  }
   std::fflush(stdout);
   if (!wait && out.empty()) return kExitOk;
   v1::BakeJob final = *job;

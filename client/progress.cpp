@@ -102,7 +102,8 @@ void ProgressView::Update(const v1::BakeJob& job) {
   bool stateChanged = int(job.state()) != lastState_;
   lastState_ = int(job.state());
   if (mode_ == Mode::kLines || job.state() != v1::BakeJob::RUNNING) {
-    if (stateChanged || job.state() != v1::BakeJob::RUNNING) {
+    // A line per state; while running (lines mode) only when something changed.
+    if (stateChanged) {
       Done();
       std::fprintf(stderr, "%s\n", JobSummary(job).c_str());
     }

@@ -24,6 +24,8 @@ class ProgressView {
   Mode mode() const { return mode_; }
   // A state of a server job (WatchBakeJob message).
   void Update(const v1::BakeJob& job);
+  // Notes a state already shown elsewhere (not shown again when the watch repeats it).
+  void Seen(const v1::BakeJob& job) { lastState_ = int(job.state()); }
   // Progress of a local bake.
   void Update(const BakeProgress& progress);
   // Bytes of a download or upload.

@@ -11,7 +11,7 @@
 namespace probebake::server {
 namespace {
 
-constexpr char kMagic[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '1'};
+constexpr char kMagic[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '2'};
 constexpr size_t kHashHexBytes = 64;
 
 class Writer {
@@ -76,7 +76,7 @@ void WriteVolume(const ProbeVolume& v, Writer* w) {
   w->Pod(v.grid.surfaceDistance);
   w->Pod(int32_t(v.shOrder));
   w->Vector(v.active);
-  for (const auto* planes : {&v.radiance, &v.irradiance}) {
+  for (const auto* planes : {&v.radiance, &v.irradiance, &v.radianceStdError}) {
     w->Pod(uint64_t(planes->size()));
     for (const std::vector<float>& plane : *planes) w->Vector(plane);
   }
@@ -105,7 +105,7 @@ bool ReadVolume(Reader* r, ProbeVolume* v) {
   if (!r->Pod(&v->grid.surfaceDistance) || !r->Pod(&shOrder) || shOrder < 0) return false;
   v->shOrder = shOrder;
   if (!r->Vector(&v->active)) return false;
-  for (auto* planes : {&v->radiance, &v->irradiance}) {
+  for (auto* planes : {&v->radiance, &v->irradiance, &v->radianceStdError}) {
     uint64_t n;
     if (!r->Pod(&n) || n > 1024) return false;
     planes->resize(size_t(n));

@@ -4,10 +4,11 @@
 // the same bits as an uninterrupted bake because finished probes are stored exactly (floats as
 // their bytes) and the baker derives every probe's samples from (seed, probe, sample) alone.
 //
-// File format (little-endian, this machine's float layout): "PBCKPT01", the job digest, the
-// volume (grid, order, active flags, every plane, window, stats), the done flags, then the
-// SHA-256 of everything before it. Written atomically (temporary file, fsync, rename, fsync of
-// the folder); a file that is short, corrupt or for another job digest is rejected on load.
+// File format (little-endian, this machine's float layout): "PBCKPT02", the job digest, the
+// volume (grid, order, active flags, every plane (radiance, irradiance, radiance standard
+// errors), window, stats), the done flags, then the SHA-256 of everything before it. Written
+// atomically (temporary file, fsync, rename, fsync of the folder); a file that is short, corrupt or
+// for another job digest is rejected on load.
 #pragma once
 
 #include <cstdint>

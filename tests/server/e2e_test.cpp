@@ -1,0 +1,379 @@
+// End-to-end tests with the real executables: probebake-server (real tracer, real volume
+// writer) started by the test on a free loopback port with its own data folder, and the
+// probebake CLI run as a user would. Small jobs (18 to 64 probes, few samples) keep it fast.
+#include <gtest/gtest.h>
+
+#include <signal.h>
+
+#include <algorithm>
+#include <cstring>
+#include <fstream>
+#include <random>
+#include <thread>
+
+#include "client/client.h"
+#include "probebake/job/digest.h"
+#include "probebake/job/job_json.h"
+#include "probebake/volume/vdb_io.h"
+#include "subprocess.h"
+#include "temp_dir.h"
+
+namespace probebake::testing {
+namespace {
+
+using std::chrono::milliseconds;
+using std::chrono::seconds;
+using std::chrono::steady_clock;
+
+const std::string kCli = PROBEBAKE_CLI;
+const std::string kServer = PROBEBAKE_SERVER;
+const std::filesystem::path kData = PROBEBAKE_SERVER_TEST_DATA;
+
+double SecondsSince(steady_clock::time_point start) {
+  return std::chrono::duration<double>(steady_clock::now() - start).count();
+}
+
+// A job file in `dir`: the box scene of data/small_job.json with the given grid counts and
+// samples (box.obj copied beside it, so the file reference is uploaded by the CLI).
+std::filesystem::path WriteJob(const std::filesystem::path& dir, const std::string& name, int nx,
+                               int ny, int nz, int samples, int seed = 7) {
+  std::filesystem::copy_file(kData / "box.obj", dir / "box.obj",
+                             std::filesystem::copy_options::overwrite_existing);
+  std::string json = ReadFile(kData / "small_job.json");
+  auto replace = [&](const std::string& from, const std::string& to) {
+    size_t at = json.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    if (at != std::string::npos) json.replace(at, from.size(), to);
+  };
+  replace("\"counts\": [3, 3, 2]", "\"counts\": [" + std::to_string(nx) + ", " +
+                                       std::to_string(ny) + ", " + std::to_string(nz) + "]");
+  replace("\"samplesPerProbe\": 64", "\"samplesPerProbe\": " + std::to_string(samples));
+  replace("\"seed\": 7", "\"seed\": " + std::to_string(seed));
+  std::filesystem::path path = dir / name;
+  std::ofstream(path) << json;
+  return path;
+}
+
+class ServerProcess {
+ public:
+  ServerProcess(const std::filesystem::path& dir, std::vector<std::string> extra = {}) : dir_(dir) {
+    std::filesystem::path portFile = dir / ("port" + std::to_string(++counter_));
+    std::vector<std::string> argv = {
+        kServer,       "--listen",       "127.0.0.1:0", "--data-dir", (dir / "data").string(),
+        "--port-file", portFile.string()};
+    argv.insert(argv.end(), extra.begin(), extra.end());
+    process_ = std::make_unique<Subprocess>(argv, dir / "server.log");
+    auto port = WaitForPortFile(portFile, seconds(30));
+    EXPECT_TRUE(port) << ReadFile(dir / "server.log");
+    port_ = port.value_or(0);
+  }
+  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  Subprocess& process() { return *process_; }
+  std::string log() const { return ReadFile(dir_ / "server.log"); }
+
+ private:
+  static inline int counter_ = 0;
+  std::filesystem::path dir_;
+  std::unique_ptr<Subprocess> process_;
+  int port_ = 0;
+};
+
+RunResult Cli(std::vector<std::string> args, const std::map<std::string, std::string>& env = {}) {
+  args.insert(args.begin(), kCli);
+  return Run(args, env, seconds(120));
+}
+
+// Every grid value, the grid and the metadata except `stats` (wall time, threads and the counts
+// of the attempt that finished) must agree bit for bit.
+void ExpectSameVolume(const std::filesystem::path& a, const std::filesystem::path& b) {
+  auto va = ReadProbeVolume(a.string());
+  auto vb = ReadProbeVolume(b.string());
+  ASSERT_TRUE(va.ok()) << va.status();
+  ASSERT_TRUE(vb.ok()) << vb.status();
+  const ProbeVolume &x = va->volume, &y = vb->volume;
+  EXPECT_EQ(x.grid.ProbeCount(), y.grid.ProbeCount());
+  EXPECT_EQ(x.grid.origin, y.grid.origin);
+  EXPECT_EQ(x.grid.spacing, y.grid.spacing);
+  EXPECT_EQ(x.shOrder, y.shOrder);
+  EXPECT_EQ(x.active, y.active);
+  auto same = [](const std::vector<float>& p, const std::vector<float>& q,
+                 const std::string& what) {
+    ASSERT_EQ(p.size(), q.size()) << what;
+    for (size_t i = 0; i < p.size(); ++i)
+      ASSERT_EQ(std::memcmp(&p[i], &q[i], sizeof(float)), 0)
+          << what << "[" << i << "]: " << p[i] << " vs " << q[i];
+  };
+  ASSERT_EQ(x.radiance.size(), y.radiance.size());
+  ASSERT_GT(x.radiance.size(), 0u);
+  for (size_t c = 0; c < x.radiance.size(); ++c)
+    same(x.radiance[c], y.radiance[c], "radiance " + std::to_string(c));
+  ASSERT_EQ(x.irradiance.size(), y.irradiance.size());
+  for (size_t c = 0; c < x.irradiance.size(); ++c)
+    same(x.irradiance[c], y.irradiance[c], "irradiance " + std::to_string(c));
+  same(x.validity, y.validity, "validity");
+  same(x.stdError, y.stdError, "stdError");
+  same(x.sampleCount, y.sampleCount, "sampleCount");
+  for (const auto& [key, value] : va->rawMetadata) {
+    if (key == "stats") continue;
+    EXPECT_EQ(vb->rawMetadata[key], value) << "metadata " << key;
+  }
+}
+
+std::string JobName(const std::string& submitOut) {
+  size_t at = submitOut.find("bakeJobs/");
+  return at == std::string::npos ? "" : submitOut.substr(at, 9 + 16);
+}
+
+TEST(EndToEnd, ServerBakeIsBitIdenticalToLocalBake) {
+  TempDir dir;
+  auto job = WriteJob(dir.path(), "job.json", 3, 3, 2, 64);
+  RunResult local = Cli({"bake", job.string(), "-o", (dir.path() / "local.vdb").string()});
+  ASSERT_EQ(local.exitCode, 0) << local.err;
+
+  ServerProcess server(dir.path(), {"--threads", "1"});
+  auto start = steady_clock::now();
+  RunResult submit = Cli({"submit", job.string(), "--server", server.address(), "--wait", "-o",
+                          (dir.path() / "server.vdb").string()});
+  double submitSeconds = SecondsSince(start);
+  ASSERT_EQ(submit.exitCode, 0) << submit.err << server.log();
+  ExpectSameVolume(dir.path() / "local.vdb", dir.path() / "server.vdb");
+  std::printf("submit --wait -o (upload, 18 probes, fetch): %.3f s\n", submitSeconds);
+
+  // The same job again: the result cache answers, with the same volume.
+  RunResult again = Cli({"submit", job.string(), "--server", server.address(), "--json"});
+  ASSERT_EQ(again.exitCode, 0) << again.err;
+  EXPECT_NE(again.out.find("\"cachedResult\":true"), std::string::npos) << again.out;
+  // --skip-cache bakes again: same grids.
+  RunResult forced = Cli({"submit", job.string(), "--server", server.address(), "--skip-cache",
+                          "-o", (dir.path() / "forced.vdb").string()});
+  ASSERT_EQ(forced.exitCode, 0) << forced.err;
+  ExpectSameVolume(dir.path() / "local.vdb", dir.path() / "forced.vdb");
+
+  // status / list / inspect.
+  std::string name = JobName(submit.out);
+  ASSERT_FALSE(name.empty()) << submit.out;
+  RunResult status = Cli({"status", name, "--server", server.address()});
+  EXPECT_EQ(status.exitCode, 0);
+  EXPECT_NE(status.out.find("SUCCEEDED"), std::string::npos) << status.out;
+  RunResult list = Cli({"list", "--server", server.address(), "--json"});
+  EXPECT_EQ(list.exitCode, 0);
+  EXPECT_EQ(std::count(list.out.begin(), list.out.end(), '\n'), 3) << list.out;
+  RunResult inspect = Cli({"inspect", (dir.path() / "server.vdb").string(), "--json"});
+  EXPECT_EQ(inspect.exitCode, 0) << inspect.err;
+  EXPECT_NE(inspect.out.find("\"probes\":18"), std::string::npos) << inspect.out;
+  server.process().Signal(SIGTERM);
+  EXPECT_EQ(server.process().Wait(seconds(10)), 0);
+}
+
+TEST(EndToEnd, CliExitCodes) {
+  TempDir dir;
+  auto job = WriteJob(dir.path(), "job.json", 2, 2, 1, 16);
+  // 2: bad input, the message names the file and the field.
+  std::ofstream(dir.path() / "unknown.json") << R"({"grid": {"min": [0,0,0], "max": [1,1,1],
+      "counts": [1,1,1]}, "settings": {"samplesPerProbe": 4, "sampels": 3}})";
+  RunResult unknown =
+      Cli({"bake", (dir.path() / "unknown.json").string(), "-o", (dir.path() / "x.vdb").string()});
+  EXPECT_EQ(unknown.exitCode, 2);
+  EXPECT_NE(unknown.err.find("unknown.json"), std::string::npos) << unknown.err;
+  EXPECT_NE(unknown.err.find("settings.sampels"), std::string::npos) << unknown.err;
+  RunResult usage = Cli({"bake"});
+  EXPECT_EQ(usage.exitCode, 2);
+  RunResult noCommand = Cli({});
+  EXPECT_EQ(noCommand.exitCode, 2);
+  // 4: nothing listens there (a port just freed).
+  RunResult unreachable = Cli({"status", "bakeJobs/0123456789abcdef", "--server", "127.0.0.1:1"});
+  EXPECT_EQ(unreachable.exitCode, 4) << unreachable.err;
+
+  std::ofstream(dir.path() / "token") << "e2e-token\n";
+  ServerProcess server(dir.path(), {"--token-file", (dir.path() / "token").string()});
+  // 4: no token, a wrong token.
+  RunResult noToken = Cli({"list", "--server", server.address()});
+  EXPECT_EQ(noToken.exitCode, 4) << noToken.err;
+  RunResult badToken = Cli({"list", "--server", server.address()}, {{"PROBEBAKE_TOKEN", "nope"}});
+  EXPECT_EQ(badToken.exitCode, 4) << badToken.err;
+  std::map<std::string, std::string> env = {{"PROBEBAKE_TOKEN", "e2e-token"},
+                                            {"PROBEBAKE_SERVER", server.address()}};
+  // 2 from the server: a job past a limit, and a missing file, both naming file and field.
+  auto huge = WriteJob(dir.path(), "huge.json", 3000, 3000, 1000, 16);
+  RunResult tooBig = Cli({"submit", huge.string()}, env);
+  EXPECT_EQ(tooBig.exitCode, 2);
+  EXPECT_NE(tooBig.err.find("huge.json: grid"), std::string::npos) << tooBig.err;
+  std::filesystem::remove(dir.path() / "box.obj");
+  RunResult missing = Cli({"submit", job.string()}, env);
+  EXPECT_EQ(missing.exitCode, 2);
+  EXPECT_NE(missing.err.find("scene.meshes[0].file"), std::string::npos) << missing.err;
+  job = WriteJob(dir.path(), "job.json", 2, 2, 1, 16);
+  // 2: an unknown job name, a malformed one.
+  EXPECT_EQ(Cli({"status", "bakeJobs/0123456789abcdef"}, env).exitCode, 2);
+  EXPECT_EQ(Cli({"status", "nonsense"}, env).exitCode, 2);
+
+  // 0, then 3 for a cancelled job: a long bake (64 probes x 1M samples), cancelled.
+  auto slow = WriteJob(dir.path(), "slow.json", 4, 4, 4, 1 << 20);
+  RunResult queued = Cli({"submit", slow.string()}, env);
+  ASSERT_EQ(queued.exitCode, 0) << queued.err;
+  std::string name = JobName(queued.out);
+  for (int i = 0; i < 200; ++i) {
+    if (Cli({"status", name}, env).out.find("RUNNING") != std::string::npos) break;
+    std::this_thread::sleep_for(milliseconds(20));
+  }
+  auto start = steady_clock::now();
+  RunResult cancel = Cli({"cancel", name}, env);
+  double cancelSeconds = SecondsSince(start);
+  EXPECT_EQ(cancel.exitCode, 0) << cancel.err;
+  EXPECT_NE(cancel.out.find("CANCELLED"), std::string::npos) << cancel.out;
+  std::printf("probebake cancel (request to CANCELLED, process included): %.3f s\n", cancelSeconds);
+  EXPECT_EQ(Cli({"status", name}, env).exitCode, 3);
+  EXPECT_EQ(Cli({"watch", name}, env).exitCode, 3);
+  RunResult fetchCancelled = Cli({"fetch", name, "-o", (dir.path() / "c.vdb").string()}, env);
+  EXPECT_EQ(fetchCancelled.exitCode, 3);
+  // 0: a good job, watched, fetched.
+  RunResult good =
+      Cli({"submit", job.string(), "--wait", "-o", (dir.path() / "g.vdb").string()}, env);
+  EXPECT_EQ(good.exitCode, 0) << good.err;
+  server.process().Signal(SIGTERM);
+  EXPECT_EQ(server.process().Wait(seconds(10)), 0);
+}
+
+TEST(EndToEnd, FetchResumesAPartialDownloadAndRejectsACorruptOne) {
+  TempDir dir;
+  auto job = WriteJob(dir.path(), "job.json", 3, 3, 2, 64);
+  ServerProcess server(dir.path());
+  RunResult submit = Cli({"submit", job.string(), "--server", server.address(), "--wait"});
+  ASSERT_EQ(submit.exitCode, 0) << submit.err;
+  std::string name = JobName(submit.out);
+  auto full = dir.path() / "full.vdb";
+  ASSERT_EQ(Cli({"fetch", name, "--server", server.address(), "-o", full.string()}).exitCode, 0);
+  std::string bytes = ReadFile(full);
+  ASSERT_GT(bytes.size(), 1000u);
+  // A download broken after 1000 bytes continues from there.
+  auto out = dir.path() / "resumed.vdb";
+  std::ofstream(out.string() + ".part", std::ios::binary) << bytes.substr(0, 1000);
+  RunResult resumed = Cli({"fetch", name, "--server", server.address(), "-o", out.string()});
+  ASSERT_EQ(resumed.exitCode, 0) << resumed.err;
+  EXPECT_EQ(ReadFile(out), bytes);
+  EXPECT_FALSE(std::filesystem::exists(out.string() + ".part"));
+  // A partial file with wrong bytes fails the digest check, is removed, and a retry succeeds.
+  auto bad = dir.path() / "bad.vdb";
+  std::string wrong = bytes.substr(0, 1000);
+  wrong[10] ^= 0x55;
+  std::ofstream(bad.string() + ".part", std::ios::binary) << wrong;
+  RunResult corrupt = Cli({"fetch", name, "--server", server.address(), "-o", bad.string()});
+  EXPECT_NE(corrupt.exitCode, 0);
+  EXPECT_NE(corrupt.err.find("hashes to"), std::string::npos) << corrupt.err;
+  EXPECT_FALSE(std::filesystem::exists(bad));
+  EXPECT_FALSE(std::filesystem::exists(bad.string() + ".part"));
+  EXPECT_EQ(Cli({"fetch", name, "--server", server.address(), "-o", bad.string()}).exitCode, 0);
+  EXPECT_EQ(ReadFile(bad), bytes);
+}
+
+TEST(EndToEnd, KilledMidBakeTheJobCompletesOnceWithTheSameBits) {
+  TempDir dir;
+  // 75 probes x 12288 samples: a few seconds of baking on two cores. (Counts giving spacings
+  // that are exact in binary: 5 x 5 x 3 over the box's 4 x 4 x 2 grid.)
+  auto job = WriteJob(dir.path(), "job.json", 5, 5, 3, 12288, 5);
+  RunResult local = Cli({"bake", job.string(), "-o", (dir.path() / "local.vdb").string()});
+  ASSERT_EQ(local.exitCode, 0) << local.err;
+
+  std::string name;
+  int64_t doneAtKill = 0;
+  {
+    ServerProcess server(dir.path(), {"--checkpoint-interval", "0.2"});
+    RunResult submit = Cli({"submit", job.string(), "--server", server.address()});
+    ASSERT_EQ(submit.exitCode, 0) << submit.err;
+    name = JobName(submit.out);
+    client::ConnectOptions options;
+    options.server = server.address();
+    auto c = client::Client::Connect(options);
+    ASSERT_TRUE(c.ok());
+    for (int i = 0; i < 1000; ++i) {
+      auto got = (*c)->GetJob(name);
+      ASSERT_TRUE(got.ok());
+      doneAtKill = got->progress().probes_done();
+      if (got->state() == v1::BakeJob::RUNNING && doneAtKill >= 16) break;
+      std::this_thread::sleep_for(milliseconds(20));
+    }
+    ASSERT_GE(doneAtKill, 16);
+    ASSERT_LT(doneAtKill, 75) << "the bake finished before it could be killed";
+    server.process().Signal(SIGKILL);
+    EXPECT_EQ(server.process().Wait(seconds(10)), -SIGKILL);
+  }
+  auto restart = steady_clock::now();
+  ServerProcess server(dir.path(), {"--checkpoint-interval", "0.2"});
+  double servingSeconds = SecondsSince(restart);
+  RunResult watch = Cli({"watch", name, "--server", server.address(), "--json"});
+  ASSERT_EQ(watch.exitCode, 0) << watch.err << server.log();
+  double doneSeconds = SecondsSince(restart);
+  RunResult status = Cli({"status", name, "--server", server.address(), "--json"});
+  EXPECT_NE(status.out.find("\"attempts\":2"), std::string::npos) << status.out;
+  size_t at = status.out.find("\"probesResumed\":\"");
+  ASSERT_NE(at, std::string::npos) << status.out;
+  int64_t resumed = std::stoll(status.out.substr(at + 17));
+  EXPECT_GT(resumed, 0);
+  EXPECT_LE(resumed, doneAtKill);
+  RunResult fetch = Cli(
+      {"fetch", name, "--server", server.address(), "-o", (dir.path() / "server.vdb").string()});
+  ASSERT_EQ(fetch.exitCode, 0) << fetch.err;
+  ExpectSameVolume(dir.path() / "local.vdb", dir.path() / "server.vdb");
+  // Exactly one job, baked by two attempts, never two at once (one server per data folder).
+  RunResult list = Cli({"list", "--server", server.address()});
+  EXPECT_EQ(std::count(list.out.begin(), list.out.end(), '\n'), 1) << list.out;
+  std::printf(
+      "killed at %lld/75 probes; restarted server serving after %.3f s; resumed %lld "
+      "probes from the checkpoint; job done %.3f s after the restart\n",
+      (long long)doneAtKill, servingSeconds, (long long)resumed, doneSeconds);
+}
+
+TEST(EndToEnd, SubmitToRunningLatencyAndFetchThroughput) {
+  TempDir dir;
+  ServerProcess server(dir.path());
+  client::ConnectOptions options;
+  options.server = server.address();
+  auto c = client::Client::Connect(options);
+  ASSERT_TRUE(c.ok());
+  ASSERT_TRUE((*c)->GetCapabilities().ok());
+  // Submit-to-running: CreateBakeJob sent until a watch reports RUNNING, median of 5 jobs.
+  std::vector<double> latencies;
+  for (int i = 0; i < 5; ++i) {
+    std::string file = "j";  // (operator+ on strings trips GCC 12's -Wrestrict)
+    file += std::to_string(i);
+    file += ".json";
+    std::string path = WriteJob(dir.path(), file, 2, 2, 1, 16, 100 + i).string();
+    auto spec = ReadJobFile(path);
+    ASSERT_TRUE(spec.ok());
+    ASSERT_TRUE((*c)->UploadJobFiles(dir.path(), &*spec).ok());
+    auto start = steady_clock::now();
+    auto job = (*c)->CreateJob(*spec, "", false);
+    ASSERT_TRUE(job.ok()) << job.status();
+    double running = -1;
+    auto final = (*c)->Watch(job->name(), [&](const v1::BakeJob& update) {
+      if (running < 0 && update.state() >= v1::BakeJob::RUNNING) running = SecondsSince(start);
+    });
+    ASSERT_TRUE(final.ok());
+    ASSERT_EQ(final->state(), v1::BakeJob::SUCCEEDED);
+    latencies.push_back(running);
+  }
+  std::sort(latencies.begin(), latencies.end());
+  // Fetch throughput on loopback: a 64 MiB blob uploaded, then fetched with the CLI's client.
+  std::string blob(64 << 20, '\0');
+  std::mt19937_64 rng(1);
+  for (size_t i = 0; i + 8 <= blob.size(); i += 8) {
+    uint64_t v = rng();
+    std::memcpy(&blob[i], &v, 8);
+  }
+  v1::Digest digest = DigestOf(blob);
+  auto upStart = steady_clock::now();
+  ASSERT_TRUE((*c)->UploadBlob(digest, blob).ok());
+  double upSeconds = SecondsSince(upStart);
+  auto downStart = steady_clock::now();
+  ASSERT_TRUE((*c)->FetchBlob(digest, dir.path() / "blob.bin").ok());
+  double downSeconds = SecondsSince(downStart);
+  EXPECT_EQ(std::filesystem::file_size(dir.path() / "blob.bin"), blob.size());
+  std::printf(
+      "submit-to-running: median %.1f ms (min %.1f, max %.1f); loopback upload %.0f MB/s, "
+      "fetch (download + SHA-256 check) %.0f MB/s\n",
+      1e3 * latencies[2], 1e3 * latencies[0], 1e3 * latencies[4],
+      double(blob.size()) / 1e6 / upSeconds, double(blob.size()) / 1e6 / downSeconds);
+}
+
+}  // namespace
+}  // namespace probebake::testing
