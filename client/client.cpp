@@ -100,8 +100,16 @@ absl::StatusOr<std::unique_ptr<Client>> Client::Connect(const ConnectOptions& op
   grpc::ChannelArguments arguments;
   arguments.SetMaxReceiveMessageSize(64 << 20);
   auto channel = grpc::CreateCustomChannel(options.server, credentials, arguments);
-  if (!channel->WaitForConnected(std::chrono::system_clock::now() + options.connectTimeout))
-    return absl::UnavailableError(absl::StrCat("cannot reach the server at ", options.server));
+  // Connect now, so an unreachable server is reported at once: the first failed attempt
+  // (refused, no route, TLS handshake) ends the wait instead of the timeout.
+  auto deadline = std::chrono::system_clock::now() + options.connectTimeout;
+  grpc_connectivity_state state = channel->GetState(/*try_to_connect=*/true);
+  while (state != GRPC_CHANNEL_READY) {
+    if (state == GRPC_CHANNEL_TRANSIENT_FAILURE || state == GRPC_CHANNEL_SHUTDOWN ||
+        !channel->WaitForStateChange(state, deadline))
+      return absl::UnavailableError(absl::StrCat("cannot reach the server at ", options.server));
+    state = channel->GetState(true);
+  }
   std::unique_ptr<Client> client(new Client(std::move(channel), options.token));
   return client;
 }
