@@ -234,6 +234,33 @@ TEST(EndToEnd, CliExitCodes) {
   EXPECT_EQ(server.process().Wait(seconds(10)), 0);
 }
 
+TEST(EndToEnd, TlsWithToken) {
+  TempDir dir;
+  auto cert = dir.path() / "cert.pem", key = dir.path() / "key.pem";
+  RunResult made = testing::Run({"/usr/bin/openssl", "req", "-x509", "-newkey", "ec", "-pkeyopt",
+                                 "ec_paramgen_curve:prime256v1", "-nodes", "-keyout", key.string(),
+                                 "-out", cert.string(), "-days", "1", "-subj", "/CN=localhost",
+                                 "-addext", "subjectAltName=IP:127.0.0.1,DNS:localhost"});
+  if (made.exitCode != 0) GTEST_SKIP() << "openssl could not make a certificate: " << made.err;
+  std::ofstream(dir.path() / "token") << "tls-token\n";
+  ServerProcess server(dir.path(), {"--tls-cert", cert.string(), "--tls-key", key.string(),
+                                    "--token-file", (dir.path() / "token").string()});
+  std::map<std::string, std::string> env = {{"PROBEBAKE_TOKEN", "tls-token"}};
+  RunResult ok = Cli({"list", "--server", server.address(), "--tls-ca", cert.string()}, env);
+  EXPECT_EQ(ok.exitCode, 0) << ok.err;
+  // Plaintext to a TLS server, and TLS with roots that do not trust the certificate: 4.
+  EXPECT_EQ(Cli({"list", "--server", server.address()}, env).exitCode, 4);
+  EXPECT_EQ(Cli({"list", "--server", server.address(), "--tls"}, env).exitCode, 4);
+  // TLS without the token: 4.
+  EXPECT_EQ(Cli({"list", "--server", server.address(), "--tls-ca", cert.string()}).exitCode, 4);
+  // A job over TLS.
+  auto job = WriteJob(dir.path(), "job.json", 2, 2, 1, 16);
+  RunResult submit = Cli({"submit", job.string(), "--server", server.address(), "--tls-ca",
+                          cert.string(), "-o", (dir.path() / "tls.vdb").string()},
+                         env);
+  EXPECT_EQ(submit.exitCode, 0) << submit.err;
+}
+
 TEST(EndToEnd, FetchResumesAPartialDownloadAndRejectsACorruptOne) {
   TempDir dir;
   auto job = WriteJob(dir.path(), "job.json", 3, 3, 2, 64);

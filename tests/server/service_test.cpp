@@ -539,6 +539,119 @@ TEST(Service, GracefulRestartResumesFromTheCheckpointWithTheSameBits) {
   ExpectFakeVolume(s.Download(final.result().volume()), probes, 9);
 }
 
+TEST(Service, DrainingIsNotServingAndRefusesNewJobs) {
+  TestServer s;
+  // An upload in flight keeps the draining server up (up to 2 s) while we look at it.
+  std::string data(300000, 'd');
+  v1::Digest digest = DigestOf(data);
+  auto context = s.Context();
+  v1::WriteBlobResponse response;
+  auto stub = s.Content();
+  auto writer = stub->WriteBlob(context.get(), &response);
+  v1::WriteBlobRequest first;
+  *first.mutable_digest() = digest;
+  first.set_data(data.substr(0, 100000));
+  ASSERT_TRUE(writer->Write(first));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::thread stopper([&] { s.Stop(); });
+  int health = 1;
+  for (int i = 0; i < 100 && health == 1; ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    health = s.Health();
+  }
+  EXPECT_EQ(health, 2);  // NOT_SERVING
+  grpc::Status refused = CreateStatus(s, Request(SmallJob(2)));
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::UNAVAILABLE) << refused.error_message();
+  // The upload in flight still completes.
+  v1::WriteBlobRequest rest;
+  rest.set_write_offset(100000);
+  rest.set_data(data.substr(100000));
+  rest.set_finish_write(true);
+  EXPECT_TRUE(writer->Write(rest));
+  writer->WritesDone();
+  grpc::Status finished = writer->Finish();
+  EXPECT_TRUE(finished.ok()) << finished.error_message();
+  EXPECT_EQ(response.committed_size(), int64_t(data.size()));
+  stopper.join();
+}
+
+TEST(Service, WatchersOfADeletedJobGetNotFound) {
+  TestServerOptions options;
+  options.probeDelay = std::chrono::milliseconds(20);
+  TestServer s(options);
+  v1::BakeJob running = s.Create(SmallJob(200, 1));
+  v1::BakeJob queued = s.Create(SmallJob(10, 2));
+  auto context = s.Context();
+  v1::WatchBakeJobRequest watch;
+  watch.set_name(queued.name());
+  auto stub = s.Jobs();
+  auto reader = stub->WatchBakeJob(context.get(), watch);
+  v1::BakeJob first;
+  ASSERT_TRUE(reader->Read(&first));
+  EXPECT_EQ(first.state(), v1::BakeJob::QUEUED);
+  v1::DeleteBakeJobRequest del;
+  del.set_name(queued.name());
+  google::protobuf::Empty empty;
+  auto c = s.Context();
+  ASSERT_TRUE(s.Jobs()->DeleteBakeJob(c.get(), del, &empty).ok());
+  v1::BakeJob more;
+  while (reader->Read(&more)) {
+  }
+  grpc::Status status = reader->Finish();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::NOT_FOUND) << status.error_message();
+  v1::CancelBakeJobRequest cancel;
+  cancel.set_name(running.name());
+  v1::BakeJob cancelled;
+  auto c2 = s.Context();
+  ASSERT_TRUE(s.Jobs()->CancelBakeJob(c2.get(), cancel, &cancelled).ok());
+}
+
+TEST(Service, RunsUpToMaxConcurrentJobsAtOnce) {
+  TestServerOptions options;
+  options.probeDelay = std::chrono::milliseconds(10);
+  options.maxConcurrentJobs = 2;
+  TestServer s(options);
+  std::vector<v1::BakeJob> jobs;
+  for (int i = 0; i < 3; ++i) jobs.push_back(s.Create(SmallJob(40, uint64_t(50 + i))));
+  int most = 0;
+  for (int poll = 0; poll < 300; ++poll) {
+    int running = 0, final = 0;
+    for (const v1::BakeJob& job : jobs) {
+      v1::BakeJob now = s.Get(job.name());
+      running += now.state() == v1::BakeJob::RUNNING;
+      final += now.state() == v1::BakeJob::SUCCEEDED;
+    }
+    most = std::max(most, running);
+    if (final == 3) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(most, 2);
+  for (const v1::BakeJob& job : jobs)
+    EXPECT_EQ(s.WaitFinal(job.name()).state(), v1::BakeJob::SUCCEEDED);
+}
+
+TEST(Service, GarbageAssetsAreRefusedUpFront) {
+  TestServer s;
+  std::mt19937 rng(99);
+  for (const char* format : {"obj", "ply", "glb", "gltf"}) {
+    std::string garbage(2000, '\0');
+    for (char& c : garbage) c = char(rng());
+    v1::Digest digest = s.Upload(garbage);
+    v1::JobSpec spec = SmallJob(3);
+    v1::Mesh* mesh = spec.mutable_scene()->mutable_meshes(0);
+    mesh->clear_positions();
+    mesh->clear_indices();
+    *mesh->mutable_blob() = digest;
+    mesh->set_format(format);
+    grpc::Status status = CreateStatus(s, Request(spec));
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT)
+        << format << ": " << status.error_message();
+    EXPECT_NE(status.error_message().find("scene.meshes[0]"), std::string::npos)
+        << status.error_message();
+  }
+  EXPECT_EQ(s.Health(), 1);
+}
+
 TEST(Service, GarbageRequestsDoNotHurtTheServer) {
   TestServer s;
   grpc::GenericStub stub(s.channel());
