@@ -161,6 +161,15 @@ TEST(EndToEnd, ServerBakeIsBitIdenticalToLocalBake) {
   RunResult inspect = Cli({"inspect", (dir.path() / "server.vdb").string(), "--json"});
   EXPECT_EQ(inspect.exitCode, 0) << inspect.err;
   EXPECT_NE(inspect.out.find("\"probes\":18"), std::string::npos) << inspect.out;
+  auto png = dir.path() / "slice.png";
+  RunResult slice = Cli(
+      {"inspect", (dir.path() / "server.vdb").string(), "--slice", "z=1.5", "-o", png.string()});
+  EXPECT_EQ(slice.exitCode, 0) << slice.err;
+  EXPECT_EQ(ReadFile(png).substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  RunResult badSlice =
+      Cli({"inspect", (dir.path() / "server.vdb").string(), "--slice", "w=1", "-o", png.string()});
+  EXPECT_EQ(badSlice.exitCode, 2);
+  EXPECT_NE(badSlice.err.find("slice"), std::string::npos) << badSlice.err;
   server.process().Signal(SIGTERM);
   EXPECT_EQ(server.process().Wait(seconds(10)), 0);
 }
