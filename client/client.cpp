@@ -1,6 +1,5 @@
 #include "client/client.h"
 
-#include <openssl/evp.h>
 #include <openssl/rand.h>
 
 #include <fstream>
@@ -16,35 +15,11 @@
 #include "probebake/job/digest.h"
 #include "probebake/job/file_refs.h"
 #include "server/file_util.h"
+#include "server/job_state.h"
 
 namespace probebake::client {
 
-namespace {
-
-bool IsFinal(v1::BakeJob::State state) {
-  return state == v1::BakeJob::SUCCEEDED || state == v1::BakeJob::FAILED ||
-         state == v1::BakeJob::CANCELLED;
-}
-
-// SHA-256 of a file, streamed.
-absl::StatusOr<std::string> FileSha256(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return absl::NotFoundError(absl::StrCat(path.string(), ": cannot open"));
-  EVP_MD_CTX* ctx = EVP_MD_CTX_new();
-  PB_CHECK(ctx && EVP_DigestInit_ex(ctx, EVP_sha256(), nullptr) == 1);
-  std::string buffer(1 << 20, '\0');
-  while (in) {
-    in.read(buffer.data(), std::streamsize(buffer.size()));
-    PB_CHECK(EVP_DigestUpdate(ctx, buffer.data(), size_t(in.gcount())) == 1);
-  }
-  unsigned char md[EVP_MAX_MD_SIZE];
-  unsigned length = 0;
-  PB_CHECK(EVP_DigestFinal_ex(ctx, md, &length) == 1);
-  EVP_MD_CTX_free(ctx);
-  return absl::BytesToHexString(absl::string_view(reinterpret_cast<const char*>(md), length));
-}
-
-}  // namespace
+namespace {}  // namespace
 
 absl::Status FromGrpc(const grpc::Status& status) {
   if (status.ok()) return absl::OkStatus();
@@ -270,7 +245,7 @@ absl::StatusOr<v1::BakeJob> Client::Watch(const std::string& name,
       last = job;
     }
     grpc::Status status = reader->Finish();
-    if (status.ok() && any && IsFinal(last.state())) return last;
+    if (status.ok() && any && server::IsFinal(last.state())) return last;
     if (status.ok()) status = {grpc::StatusCode::UNAVAILABLE, "the watch ended early"};
     if (status.error_code() != grpc::StatusCode::UNAVAILABLE) return FromGrpc(status);
     // The server restarts (draining or gone): wait for it, within reconnectFor.
@@ -315,7 +290,7 @@ absl::Status Client::FetchBlob(const v1::Digest& digest, const std::filesystem::
   if (have != digest.size_bytes())
     return absl::DataLossError(absl::StrCat("received ", have, " of ", digest.size_bytes(),
                                             " bytes; run fetch again to continue"));
-  PB_ASSIGN_OR_RETURN(std::string hash, FileSha256(part));
+  PB_ASSIGN_OR_RETURN(std::string hash, server::Sha256OfFile(part));
   if (hash != digest.hash()) {
     std::filesystem::remove(part, ec);
     return absl::DataLossError(absl::StrCat("the download hashes to ", hash, ", not ",

@@ -35,6 +35,7 @@
 #include "probebake/volume/volume_inspect.h"
 #include "server/bake_backend.h"
 #include "server/file_util.h"
+#include "server/job_state.h"
 
 namespace probebake::client {
 namespace {
@@ -60,11 +61,6 @@ int Fail(const absl::Status& status, const std::string& context = "") {
     message = prefixed;
   }
   return Fail(ExitCodeFor(status), message);
-}
-
-bool IsFinal(v1::BakeJob::State state) {
-  return state == v1::BakeJob::SUCCEEDED || state == v1::BakeJob::FAILED ||
-         state == v1::BakeJob::CANCELLED;
 }
 
 int ExitCodeForJob(const v1::BakeJob& job) {
@@ -203,7 +199,7 @@ int WatchAndReport(Client& client, const std::string& name, ProgressView& view,
 
 int Fetch(Client& client, const v1::BakeJob& job, const std::string& out, ProgressView& view) {
   if (job.state() != v1::BakeJob::SUCCEEDED) {
-    if (IsFinal(job.state()))
+    if (server::IsFinal(job.state()))
       return Fail(kExitJobFailed, absl::StrCat(JobSummary(job), "; nothing to fetch"));
     return Fail(kExitUsage,
                 absl::StrCat(job.name(), " has not finished (",
@@ -256,7 +252,7 @@ int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
   std::fflush(stdout);
   if (!wait && out.empty()) return kExitOk;
   v1::BakeJob final = *job;
-  if (!IsFinal(job->state())) {
+  if (!server::IsFinal(job->state())) {
     int code = WatchAndReport(**client, job->name(), view, &final);
     if (code != kExitOk) return code;
   }
@@ -297,7 +293,7 @@ int RunCancel(const ClientFlags& flags, const std::string& name) {
   if (!client.ok()) return Fail(client.status());
   absl::StatusOr<v1::BakeJob> job = (*client)->CancelJob(name);
   if (!job.ok()) return Fail(job.status());
-  if (!IsFinal(job->state())) {
+  if (!server::IsFinal(job->state())) {
     // Cancellation reaches the baker within a fraction of a second: wait for the final state.
     job = (*client)->Watch(
         name, [](const v1::BakeJob&) {}, std::chrono::seconds(10));

@@ -11,8 +11,6 @@
 #include <cstring>
 #include <system_error>
 
-#include <openssl/evp.h>
-
 #include "absl/strings/str_cat.h"
 #include "probebake/base/check.h"
 #include "probebake/base/log.h"
@@ -54,33 +52,7 @@ absl::Status ReadFully(int fd, int64_t offset, int64_t count, std::string* out) 
   return absl::OkStatus();
 }
 
-std::string HexOf(const unsigned char* bytes, unsigned length) {
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string hex(2 * length, '0');
-  for (unsigned i = 0; i < length; ++i) {
-    hex[2 * i] = kHex[bytes[i] >> 4];
-    hex[2 * i + 1] = kHex[bytes[i] & 15];
-  }
-  return hex;
-}
-
 }  // namespace
-
-// Incremental SHA-256 (OpenSSL EVP).
-struct BlobUpload::HashState {
-  EVP_MD_CTX* ctx = EVP_MD_CTX_new();
-  HashState() { PB_CHECK(ctx && EVP_DigestInit_ex(ctx, EVP_sha256(), nullptr) == 1); }
-  ~HashState() { EVP_MD_CTX_free(ctx); }
-  void Update(std::string_view data) {
-    PB_CHECK(EVP_DigestUpdate(ctx, data.data(), data.size()) == 1);
-  }
-  std::string FinalHex() {
-    unsigned char md[EVP_MAX_MD_SIZE];
-    unsigned length = 0;
-    PB_CHECK(EVP_DigestFinal_ex(ctx, md, &length) == 1);
-    return HexOf(md, length);
-  }
-};
 
 absl::Status ValidateDigest(const v1::Digest& digest, std::string_view fieldPath) {
   const std::string& hash = digest.hash();
@@ -108,7 +80,7 @@ BlobUpload::BlobUpload(BlobStore* store, v1::Digest digest, fs::path partialPath
     : store_(store),
       digest_(std::move(digest)),
       partialPath_(std::move(partialPath)),
-      hash_(std::make_unique<HashState>()) {}
+      hash_(std::make_unique<Sha256Stream>()) {}
 
 BlobUpload::~BlobUpload() {
   if (fd_ >= 0) {
@@ -322,23 +294,16 @@ absl::StatusOr<std::string> BlobStore::ReadAll(const v1::Digest& digest) const {
 }
 
 absl::StatusOr<v1::Digest> BlobStore::ImportFile(const fs::path& path) {
+  int64_t size = 0;
+  PB_ASSIGN_OR_RETURN(std::string hash, Sha256OfFile(path, &size));
   int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) return ErrnoError("open", path, errno);
-  BlobUpload::HashState hash;
-  std::string buffer;
-  int64_t size = 0;
   absl::Status status;
-  while (true) {
-    status = ReadFully(fd, size, kHashBufferBytes, &buffer);
-    if (!status.ok() || buffer.empty()) break;
-    hash.Update(buffer);
-    size += int64_t(buffer.size());
-  }
-  if (status.ok() && ::fsync(fd) != 0) status = ErrnoError("fsync", path, errno);
+  if (::fsync(fd) != 0) status = ErrnoError("fsync", path, errno);
   ::close(fd);
   PB_RETURN_IF_ERROR(status);
   v1::Digest digest;
-  digest.set_hash(hash.FinalHex());
+  digest.set_hash(hash);
   digest.set_size_bytes(size);
   if (Contains(digest)) {
     std::error_code ec;

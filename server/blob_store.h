@@ -21,6 +21,7 @@
 
 #include "absl/status/statusor.h"
 #include "probebake/v1/job.pb.h"
+#include "server/file_util.h"
 
 namespace probebake::server {
 
@@ -64,8 +65,7 @@ class BlobUpload {
   int fd_ = -1;
   int64_t size_ = 0;
   bool done_ = false;
-  struct HashState;
-  std::unique_ptr<HashState> hash_;
+  std::unique_ptr<Sha256Stream> hash_;
 };
 
 // A stored blob opened for reading; the file's size equals the digest's.

@@ -1,6 +1,7 @@
 #include "server/file_util.h"
 
 #include <fcntl.h>
+#include <openssl/evp.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -8,7 +9,9 @@
 #include <fstream>
 #include <sstream>
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
+#include "probebake/base/check.h"
 #include "probebake/base/status.h"
 
 namespace probebake::server {
@@ -64,6 +67,53 @@ absl::StatusOr<std::string> ReadWholeFile(const std::filesystem::path& path) {
   bytes << in.rdbuf();
   if (in.bad()) return absl::InternalError(absl::StrCat("read ", path.string(), " failed"));
   return bytes.str();
+}
+
+struct Sha256Stream::Context {
+  EVP_MD_CTX* ctx;
+};
+
+Sha256Stream::Sha256Stream() : context_(new Context{EVP_MD_CTX_new()}) {
+  PB_CHECK(context_->ctx && EVP_DigestInit_ex(context_->ctx, EVP_sha256(), nullptr) == 1);
+}
+
+Sha256Stream::~Sha256Stream() {
+  EVP_MD_CTX_free(context_->ctx);
+  delete context_;
+}
+
+void Sha256Stream::Update(std::string_view bytes) {
+  PB_CHECK(EVP_DigestUpdate(context_->ctx, bytes.data(), bytes.size()) == 1);
+}
+
+std::string Sha256Stream::FinalHex() {
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned length = 0;
+  PB_CHECK(EVP_DigestFinal_ex(context_->ctx, md, &length) == 1);
+  return absl::BytesToHexString(absl::string_view(reinterpret_cast<const char*>(md), length));
+}
+
+absl::StatusOr<std::string> Sha256OfFile(const std::filesystem::path& path, int64_t* size) {
+  int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) return ErrnoError("open", path, errno);
+  Sha256Stream hash;
+  std::string buffer(1 << 20, '\0');
+  int64_t total = 0;
+  while (true) {
+    ssize_t n = ::read(fd, buffer.data(), buffer.size());
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      absl::Status error = ErrnoError("read", path, errno);
+      ::close(fd);
+      return error;
+    }
+    if (n == 0) break;
+    hash.Update(std::string_view(buffer.data(), size_t(n)));
+    total += n;
+  }
+  ::close(fd);
+  if (size) *size = total;
+  return hash.FinalHex();
 }
 
 }  // namespace probebake::server

@@ -84,11 +84,6 @@ absl::StatusOr<int64_t> ParsePageToken(const std::string& token) {
 
 }  // namespace
 
-bool IsFinal(v1::BakeJob::State state) {
-  return state == v1::BakeJob::SUCCEEDED || state == v1::BakeJob::FAILED ||
-         state == v1::BakeJob::CANCELLED;
-}
-
 JobManager::JobManager(JobManagerConfig config, BlobStore* blobs, JobStore* store,
                        BakeBackend backend)
     : config_(std::move(config)),
@@ -135,7 +130,6 @@ absl::Status JobManager::Start() {
   std::lock_guard lock(mutex_);
   for (const StoredJob& job : queued) queue_.push_back(job.record.name());
   if (!queued.empty()) Logger("jobs")->info("{} queued job(s) recovered", queued.size());
-  started_ = true;
   dispatcher_ = std::thread([this] { DispatchLoop(); });
   return absl::OkStatus();
 }

@@ -33,6 +33,7 @@
 #include "probebake/job/limits.h"
 #include "probebake/v1/service.pb.h"
 #include "server/bake_backend.h"
+#include "server/job_state.h"
 
 namespace probebake::server {
 
@@ -68,8 +69,6 @@ class JobSubscriber {
   // True once the stream ended on its own (client gone): the manager then forgets it.
   virtual bool Detached() const = 0;
 };
-
-bool IsFinal(v1::BakeJob::State state);
 
 class JobManager {
  public:
@@ -143,7 +142,6 @@ class JobManager {
   std::vector<std::string> queue_;    // names of QUEUED jobs, creation order
   std::map<std::string, std::shared_ptr<RunningJob>> running_;
   std::multimap<std::string, std::shared_ptr<JobSubscriber>> subscribers_;
-  bool started_ = false;
   bool stopping_ = false;
   std::atomic<bool> draining_{false};
 

@@ -16,7 +16,7 @@
 #include "probebake/job/job_json.h"
 #include "probebake/volume/vdb_io.h"
 #include "subprocess.h"
-#include "temp_dir.h"
+#include "test_server.h"
 
 namespace probebake::testing {
 namespace {
@@ -28,10 +28,6 @@ using std::chrono::steady_clock;
 const std::string kCli = PROBEBAKE_CLI;
 const std::string kServer = PROBEBAKE_SERVER;
 const std::filesystem::path kData = PROBEBAKE_SERVER_TEST_DATA;
-
-double SecondsSince(steady_clock::time_point start) {
-  return std::chrono::duration<double>(steady_clock::now() - start).count();
-}
 
 // A job file in `dir`: the box scene of data/small_job.json with the given grid counts and
 // samples (box.obj copied beside it, so the file reference is uploaded by the CLI).
