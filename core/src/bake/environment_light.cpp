@@ -45,6 +45,25 @@ EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
   worldFromMap_ = map_->worldFromMap;
   mapFromWorld_ = Transpose(worldFromMap_);
   const int w = map_->width, h = map_->height;
+  columnLon0_.resize(w), columnLon1_.resize(w), rowZ0_.resize(h), rowZ1_.resize(h);
+  for (int ix = 0; ix < w; ++ix) {
+    if (w == 1) {
+      columnLon0_[ix] = -kPi, columnLon1_[ix] = kPi;
+    } else {
+      // Column ix covers x in [ix - 1/2, ix + 1/2] clipped to [0, w - 1]; longitude decreases
+      // with x.
+      const double x0 = std::max(0.0, ix - 0.5), x1 = std::min(double(w - 1), ix + 0.5);
+      columnLon0_[ix] = LongitudeOf(x1, w), columnLon1_[ix] = LongitudeOf(x0, w);
+    }
+  }
+  for (int iy = 0; iy < h; ++iy) {
+    if (h == 1) {
+      rowZ0_[iy] = -1, rowZ1_[iy] = 1;
+    } else {
+      const double y0 = std::max(0.0, iy - 0.5), y1 = std::min(double(h - 1), iy + 0.5);
+      rowZ0_[iy] = std::sin(LatitudeOf(y1, h)), rowZ1_[iy] = std::sin(LatitudeOf(y0, h));
+    }
+  }
   std::vector<double> weights(size_t(w) * h);
   cellSolidAngle_.resize(weights.size());
   double sum = 0;
@@ -66,22 +85,7 @@ EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
 }
 
 EnvironmentLight::Cell EnvironmentLight::CellBounds(int ix, int iy) const {
-  const int w = map_->width, h = map_->height;
-  Cell c;
-  if (w == 1) {
-    c.lon0 = -kPi, c.lon1 = kPi;
-  } else {
-    // Column ix covers x in [ix - 1/2, ix + 1/2] clipped to [0, w - 1]; longitude decreases with x.
-    const double x0 = std::max(0.0, ix - 0.5), x1 = std::min(double(w - 1), ix + 0.5);
-    c.lon0 = LongitudeOf(x1, w), c.lon1 = LongitudeOf(x0, w);
-  }
-  if (h == 1) {
-    c.z0 = -1, c.z1 = 1;
-  } else {
-    const double y0 = std::max(0.0, iy - 0.5), y1 = std::min(double(h - 1), iy + 0.5);
-    c.z0 = std::sin(LatitudeOf(y1, h)), c.z1 = std::sin(LatitudeOf(y0, h));
-  }
-  return c;
+  return {columnLon0_[ix], columnLon1_[ix], rowZ0_[iy], rowZ1_[iy]};
 }
 
 int EnvironmentLight::CellIndex(const Vec3d& d) const {

@@ -50,7 +50,8 @@ class EnvironmentLight {
   Vec3d uniform_;
   std::shared_ptr<const EnvironmentMap> map_;
   Mat3d worldFromMap_, mapFromWorld_;
-  std::vector<double> cellSolidAngle_;  // per pixel
+  std::vector<double> cellSolidAngle_;                           // per pixel
+  std::vector<double> columnLon0_, columnLon1_, rowZ0_, rowZ1_;  // cell bounds (CellBounds)
   std::unique_ptr<PiecewiseConstant2D> distribution_;
   double importance_ = 0;
 };

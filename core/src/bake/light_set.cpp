@@ -144,12 +144,16 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer)
   triangleDistribution_.resize(lights_.size());
 }
 
-bool LightSet::UseSolidAngleSampling(const LightData& l, const Vec3d& p) const {
-  // Solid-angle sampling needs a true rectangle; below ~1e-6 sr its solid angle loses precision
-  // (spherical_rectangle.h) and area sampling is as good there anyway (the light is far and small).
-  constexpr double kMinSolidAngle = 1e-6;
-  return l.rectangular &&
-         SphericalRectangleSolidAngle(p, l.position, l.edge1, l.edge2) >= kMinSolidAngle;
+namespace {
+// Below ~1e-6 sr the spherical rectangle's solid angle loses precision (spherical_rectangle.h);
+// area sampling is as good there anyway (the light is far and small).
+constexpr double kMaxSolidAnglePdf = 1e6;
+}  // namespace
+
+double LightSet::SolidAnglePdf(const LightData& l, const Vec3d& p) const {
+  if (!l.rectangular) return 0;
+  const double pdf = SphericalRectanglePdf(p, l.position, l.edge1, l.edge2);
+  return pdf > 0 && pdf <= kMaxSolidAnglePdf ? pdf : 0;
 }
 
 double LightSet::SpotFalloff(const LightData& l, const Vec3d& wFromLight) const {
@@ -269,21 +273,24 @@ bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, con
     case Kind::kRect:
     case Kind::kDisk: {
       Vec3d q;
-      if (l.kind == Kind::kRect && UseSolidAngleSampling(l, p)) {
+      if (l.kind == Kind::kRect && l.rectangular) {
+        // Solid-angle sampling, unless the rectangle is too small a target for it (then area
+        // sampling below, with the same u: the choice depends on p alone, as in EvalSurfaceHit).
         const SphericalRectangleSample r =
             SampleSphericalRectangle(u, p, l.position, l.edge1, l.edge2);
-        if (!(r.pdf > 0)) return false;
-        const Vec3d v = r.p - p;
-        const double d = Length(v);
-        if (!(d > 0)) return false;
-        s->wi = v / d;
-        const double cosLight = -Dot(s->wi, l.axis);
-        if ((cosLight <= 0 && !l.twoSided) || cosLight == 0) return false;
-        s->distance = d;
-        s->point = r.p;
-        s->radiance = l.radiance;
-        s->pdf = r.pdf;
-        return true;
+        if (r.pdf > 0 && r.pdf <= kMaxSolidAnglePdf) {
+          const Vec3d v = r.p - p;
+          const double d = Length(v);
+          if (!(d > 0)) return false;
+          s->wi = v / d;
+          const double cosLight = -Dot(s->wi, l.axis);
+          if ((cosLight <= 0 && !l.twoSided) || cosLight == 0) return false;
+          s->distance = d;
+          s->point = r.p;
+          s->radiance = l.radiance;
+          s->pdf = r.pdf;
+          return true;
+        }
       }
       if (l.kind == Kind::kRect) {
         q = SampleUniformParallelogram(u, l.position, l.edge1, l.edge2);
@@ -407,8 +414,9 @@ bool LightSet::EvalSurfaceHit(const Vec3d& p, const Vec3d* n, std::span<const do
     case Kind::kDisk: {
       const double cosLight = -Dot(wi, l.axis);
       if (cosLight <= 0 && !l.twoSided) return false;
-      if (l.kind == Kind::kRect && UseSolidAngleSampling(l, p)) {
-        out->pdf = pmf * SphericalRectanglePdf(p, l.position, l.edge1, l.edge2);
+      const double solidAnglePdf = l.kind == Kind::kRect ? SolidAnglePdf(l, p) : 0;
+      if (solidAnglePdf > 0) {
+        out->pdf = pmf * solidAnglePdf;
       } else {
         out->pdf = cosLight != 0 ? pmf * d2 / (l.area * std::abs(cosLight)) : 0;
       }

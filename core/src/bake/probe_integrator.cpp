@@ -242,7 +242,11 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
     // Shade on the side the ray arrived from; both sides of a mesh reflect.
     const Vec3d n = Dot(wi, hit.ng) < 0 ? hit.ng : -hit.ng;
     const Vec3f spawn = OffsetRayOrigin(hit.pf, Vec3f(n));
-    const double total = lights_.Importance(hit.p, &n, /*includeDelta=*/true, scratch);
+    // Light importance here serves NEE and the MIS weight of the next hit; the pure
+    // direction-sampling estimator needs neither.
+    const double total = (lightSampling_ || mis_)
+                             ? lights_.Importance(hit.p, &n, /*includeDelta=*/true, scratch)
+                             : 0.0;
 
     if (lightSampling_ && total > 0) {
       LightSample ls;

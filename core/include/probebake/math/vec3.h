@@ -30,11 +30,36 @@ struct Vec3 {
   constexpr T& operator[](int i) { return i == 0 ? x : (i == 1 ? y : z); }
 
   constexpr Vec3 operator-() const { return {-x, -y, -z}; }
-  constexpr Vec3& operator+=(const Vec3& b) { x += b.x; y += b.y; z += b.z; return *this; }
-  constexpr Vec3& operator-=(const Vec3& b) { x -= b.x; y -= b.y; z -= b.z; return *this; }
-  constexpr Vec3& operator*=(T s) { x *= s; y *= s; z *= s; return *this; }
-  constexpr Vec3& operator*=(const Vec3& b) { x *= b.x; y *= b.y; z *= b.z; return *this; }
-  constexpr Vec3& operator/=(T s) { x /= s; y /= s; z /= s; return *this; }
+  constexpr Vec3& operator+=(const Vec3& b) {
+    x += b.x;
+    y += b.y;
+    z += b.z;
+    return *this;
+  }
+  constexpr Vec3& operator-=(const Vec3& b) {
+    x -= b.x;
+    y -= b.y;
+    z -= b.z;
+    return *this;
+  }
+  constexpr Vec3& operator*=(T s) {
+    x *= s;
+    y *= s;
+    z *= s;
+    return *this;
+  }
+  constexpr Vec3& operator*=(const Vec3& b) {
+    x *= b.x;
+    y *= b.y;
+    z *= b.z;
+    return *this;
+  }
+  constexpr Vec3& operator/=(T s) {
+    x /= s;
+    y /= s;
+    z /= s;
+    return *this;
+  }
 
   friend constexpr bool operator==(const Vec3&, const Vec3&) = default;
 };
@@ -45,32 +70,54 @@ using Vec3d = Vec3<double>;
 using Vec3f = Vec3<float>;
 
 template <typename T>
-constexpr Vec3<T> operator+(Vec3<T> a, const Vec3<T>& b) { return a += b; }
+constexpr Vec3<T> operator+(Vec3<T> a, const Vec3<T>& b) {
+  return a += b;
+}
 template <typename T>
-constexpr Vec3<T> operator-(Vec3<T> a, const Vec3<T>& b) { return a -= b; }
+constexpr Vec3<T> operator-(Vec3<T> a, const Vec3<T>& b) {
+  return a -= b;
+}
 // Component-wise product (RGB modulation).
 template <typename T>
-constexpr Vec3<T> operator*(Vec3<T> a, const Vec3<T>& b) { return a *= b; }
+constexpr Vec3<T> operator*(Vec3<T> a, const Vec3<T>& b) {
+  return a *= b;
+}
 template <typename T>
-constexpr Vec3<T> operator*(Vec3<T> a, T s) { return a *= s; }
+constexpr Vec3<T> operator*(Vec3<T> a, T s) {
+  return a *= s;
+}
 template <typename T>
-constexpr Vec3<T> operator*(T s, Vec3<T> a) { return a *= s; }
+constexpr Vec3<T> operator*(T s, Vec3<T> a) {
+  return a *= s;
+}
 template <typename T>
-constexpr Vec3<T> operator/(Vec3<T> a, T s) { return a /= s; }
+constexpr Vec3<T> operator/(Vec3<T> a, T s) {
+  return a /= s;
+}
 
 template <typename T>
-constexpr T Dot(const Vec3<T>& a, const Vec3<T>& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+constexpr T Dot(const Vec3<T>& a, const Vec3<T>& b) {
+  return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 template <typename T>
 constexpr Vec3<T> Cross(const Vec3<T>& a, const Vec3<T>& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
 template <typename T>
-constexpr T LengthSquared(const Vec3<T>& a) { return Dot(a, a); }
+constexpr T LengthSquared(const Vec3<T>& a) {
+  return Dot(a, a);
+}
 template <typename T>
-T Length(const Vec3<T>& a) { return std::sqrt(Dot(a, a)); }
-// Unit vector along a; a must be non-zero and finite.
+T Length(const Vec3<T>& a) {
+  return std::sqrt(Dot(a, a));
+}
+// Unit vector along a; a must be non-zero and finite. One division, then products (hot in the
+// tracer): within 2 ulp of dividing each component.
 template <typename T>
-Vec3<T> Normalize(const Vec3<T>& a) { return a / Length(a); }
+Vec3<T> Normalize(const Vec3<T>& a) {
+  const T inv = T(1) / Length(a);
+  return {a.x * inv, a.y * inv, a.z * inv};
+}
 template <typename T>
 constexpr Vec3<T> Min(const Vec3<T>& a, const Vec3<T>& b) {
   return {std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z)};
@@ -80,9 +127,13 @@ constexpr Vec3<T> Max(const Vec3<T>& a, const Vec3<T>& b) {
   return {std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z)};
 }
 template <typename T>
-constexpr T MaxComponent(const Vec3<T>& a) { return std::max(a.x, std::max(a.y, a.z)); }
+constexpr T MaxComponent(const Vec3<T>& a) {
+  return std::max(a.x, std::max(a.y, a.z));
+}
 template <typename T>
-constexpr Vec3<T> Abs(const Vec3<T>& a) { return {std::abs(a.x), std::abs(a.y), std::abs(a.z)}; }
+constexpr Vec3<T> Abs(const Vec3<T>& a) {
+  return {std::abs(a.x), std::abs(a.y), std::abs(a.z)};
+}
 template <typename T>
 bool IsFinite(const Vec3<T>& a) {
   return std::isfinite(a.x) && std::isfinite(a.y) && std::isfinite(a.z);

@@ -65,26 +65,47 @@ class SobolSampler {
   // shuffled index is i' = Rev(LK(r, s0)), dimension 0 of the Sobol point is Rev(i') and its
   // scramble is Rev(LK(Rev(Rev(i')), s1)) = Rev(LK(i', s1)).
   double Get1D() {
-    const uint64_t key = NextDimensionKey();
+    const uint64_t key = NextDimensionKeys().key;
     const uint32_t i = ReverseBits32(LaineKarrasPermutation(reversedIndex_, uint32_t(key)));
     return U32ToUnit(ReverseBits32(LaineKarrasPermutation(i, uint32_t(key >> 32))));
   }
 
   Vec2d Get2D() {
-    const uint64_t key = NextDimensionKey();
-    const uint64_t key2 = MixBits(key);  // a third independent 32-bit seed
-    const uint32_t i = ReverseBits32(LaineKarrasPermutation(reversedIndex_, uint32_t(key)));
-    return {U32ToUnit(ReverseBits32(LaineKarrasPermutation(i, uint32_t(key >> 32)))),
-            U32ToUnit(OwenScramble32(SobolSample32(i, 1), uint32_t(key2)))};
+    const DimensionKeys& k = NextDimensionKeys();
+    const uint32_t i = ReverseBits32(LaineKarrasPermutation(reversedIndex_, uint32_t(k.key)));
+    return {U32ToUnit(ReverseBits32(LaineKarrasPermutation(i, uint32_t(k.key >> 32)))),
+            U32ToUnit(OwenScramble32(SobolSample32(i, 1), uint32_t(k.key2)))};
   }
 
  private:
-  // Hash(seed, stream, d) for the current dimension set d, then advance d.
-  uint64_t NextDimensionKey() { return HashCombine(streamHash_, dimension_++); }
+  struct DimensionKeys {
+    uint64_t key;   // Hash(seed, stream, d)
+    uint64_t key2;  // MixBits(key): a third independent 32-bit seed for Get2D
+  };
+  // The keys of the current dimension set d, then advance d. They depend on the stream and d
+  // only, not on the sample, so the first kCachedSets are computed once per stream: samples
+  // consume dimension sets in order from 0, so the cache fills contiguously.
+  const DimensionKeys& NextDimensionKeys() {
+    const uint64_t d = dimension_++;
+    if (d < cached_) return cache_[d];
+    DimensionKeys k{HashCombine(streamHash_, d), 0};
+    k.key2 = MixBits(k.key);
+    if (d == cached_ && d < kCachedSets) {
+      cache_[d] = k;
+      ++cached_;
+      return cache_[d];
+    }
+    overflow_ = k;
+    return overflow_;
+  }
 
+  static constexpr uint64_t kCachedSets = 48;
   uint64_t streamHash_;         // Hash(seed, stream)
   uint32_t reversedIndex_ = 0;  // ReverseBits32(index)
   uint64_t dimension_ = 0;
+  uint64_t cached_ = 0;
+  DimensionKeys cache_[kCachedSets];
+  DimensionKeys overflow_{};
 };
 
 class IndependentSampler {
