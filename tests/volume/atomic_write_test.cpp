@@ -39,13 +39,13 @@ TEST(AtomicWrite, OverwritingReplacesTheFileWhole) {
   TestVolumeSpec big;
   big.counts[0] = 20;
   big.shOrder = 4;
-  ASSERT_TRUE(WriteProbeVolume(path, MakeTestVolume(big), MakeTestMetadata()).ok());
+  PB_ASSERT_OK(WriteProbeVolume(path, MakeTestVolume(big), MakeTestMetadata()));
   const auto bigSize = std::filesystem::file_size(path);
 
   TestVolumeSpec small;
   small.seed = 99;
   const ProbeVolume smallVolume = MakeTestVolume(small);
-  ASSERT_TRUE(WriteProbeVolume(path, smallVolume, MakeTestMetadata()).ok());
+  PB_ASSERT_OK(WriteProbeVolume(path, smallVolume, MakeTestMetadata()));
   EXPECT_LT(std::filesystem::file_size(path), bigSize);
   const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
   ASSERT_TRUE(read.ok()) << read.status();
@@ -81,7 +81,7 @@ TEST(AtomicWrite, FailedWriteKeepsThePreviousFileAndRemovesTheTemporary) {
   TempDir dir;
   const std::string path = dir.File("out.vdb");
   const ProbeVolume first = MakeTestVolume({});
-  ASSERT_TRUE(WriteProbeVolume(path, first, MakeTestMetadata()).ok());
+  PB_ASSERT_OK(WriteProbeVolume(path, first, MakeTestMetadata()));
 
   TestVolumeSpec bigSpec;
   bigSpec.counts[0] = bigSpec.counts[1] = bigSpec.counts[2] = 24;

@@ -91,7 +91,7 @@ TEST(IrradianceSlice, ConstantRadianceGivesPiLEverywhere) {
 
   TempDir dir;
   const std::string path = dir.File("constant.png");
-  ASSERT_TRUE(WriteIrradianceSlice(v, options, path).ok());
+  PB_ASSERT_OK(WriteIrradianceSlice(v, options, path));
   const Png png = ReadPng(path);
   ASSERT_EQ(png.width, 80);
   ASSERT_EQ(png.height, 48);
@@ -186,7 +186,7 @@ TEST(IrradianceSlice, GradientInXIsMonotoneAlongTheRows) {
   }
   TempDir dir;
   const std::string path = dir.File("gradient.png");
-  ASSERT_TRUE(WriteIrradianceSlice(v, options, path).ok());
+  PB_ASSERT_OK(WriteIrradianceSlice(v, options, path));
   const Png png = ReadPng(path);
   ASSERT_EQ(png.width, 60);
   ASSERT_EQ(png.height, 40);

@@ -68,7 +68,7 @@ TEST(PyOpenVdb, ReadsGridsValuesTransformAndMetadata) {
   const VolumeMetadata meta = MakeTestMetadata();
   TempDir dir;
   const std::string path = dir.File("volume.vdb");
-  ASSERT_TRUE(WriteProbeVolume(path, volume, meta).ok());
+  PB_ASSERT_OK(WriteProbeVolume(path, volume, meta));
 
   const ProbeGrid& g = volume.grid;
   int64_t active = 0;

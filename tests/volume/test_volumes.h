@@ -7,6 +7,13 @@
 
 #include "probebake/bake/probe_volume.h"
 
+// ASSERT_TRUE(status.ok()) that prints the status on failure (for gtest files).
+#define PB_ASSERT_OK(expr)                      \
+  do {                                          \
+    const ::absl::Status pb_status_ = (expr);   \
+    ASSERT_TRUE(pb_status_.ok()) << pb_status_; \
+  } while (false)
+
 namespace probebake::testing {
 
 struct TestVolumeSpec {

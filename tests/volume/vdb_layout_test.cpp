@@ -33,7 +33,7 @@ class VdbLayout : public ::testing::Test {
     spec_.irradiance = true;
     volume_ = MakeTestVolume(spec_);
     path_ = dir_.File("volume.vdb");
-    ASSERT_TRUE(WriteProbeVolume(path_, volume_, MakeTestMetadata()).ok());
+    PB_ASSERT_OK(WriteProbeVolume(path_, volume_, MakeTestMetadata()));
   }
 
   // The grid names in the order WriteProbeVolume writes them.
@@ -357,7 +357,7 @@ TEST_F(VdbLayout, ReaderRejectsBrokenFilesNamingTheGridOrKey) {
 TEST_F(VdbLayout, CountsComeFromTheActiveBoxWithoutGridCounts) {
   // Make the last probe active so the active box reaches the grid's far corner.
   volume_.active.back() = 1;
-  ASSERT_TRUE(WriteProbeVolume(path_, volume_, MakeTestMetadata()).ok());
+  PB_ASSERT_OK(WriteProbeVolume(path_, volume_, MakeTestMetadata()));
   vdb::GridPtrVec grids;
   vdb::MetaMap::Ptr meta;
   ReadAll(path_, &grids, &meta);

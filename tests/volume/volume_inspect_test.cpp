@@ -60,7 +60,7 @@ class Inspect : public ::testing::Test {
     spec.awkwardValues = false;  // FLT_MAX would swamp the means
     volume_ = MakeTestVolume(spec);
     path_ = dir_.File("volume.vdb");
-    ASSERT_TRUE(WriteProbeVolume(path_, volume_, MakeTestMetadata()).ok());
+    PB_ASSERT_OK(WriteProbeVolume(path_, volume_, MakeTestMetadata()));
     for (uint8_t a : volume_.active) active_ += a;
     for (size_t p = 0; p < volume_.active.size(); ++p) {
       invalid_ += volume_.active[p] && volume_.validity[p] == 0;
@@ -147,7 +147,7 @@ TEST_F(Inspect, KnownValuesGiveKnownStatistics) {
   }
   v.validity[0] = v.validity[1] = 0;
   const std::string path = dir_.File("known.vdb");
-  ASSERT_TRUE(WriteProbeVolume(path, v, MakeTestMetadata()).ok());
+  PB_ASSERT_OK(WriteProbeVolume(path, v, MakeTestMetadata()));
   const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path);
   ASSERT_TRUE(report.ok()) << report.status();
   // 60 probes, every 4th from 3 inactive: 45 active; indices 0..59 minus 3, 7, ..., 59.
@@ -229,6 +229,26 @@ TEST_F(Inspect, JsonParsesWithPythonAndHoldsTheFigures) {
   const int status = ::pclose(pipe);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
   EXPECT_EQ(output, "ok\n");
+}
+
+TEST_F(Inspect, VolumeWithoutBakedProbes) {
+  TestVolumeSpec spec;
+  spec.inactiveEvery = 1;  // every probe inactive
+  const std::string path = dir_.File("empty.vdb");
+  PB_ASSERT_OK(WriteProbeVolume(path, MakeTestVolume(spec), MakeTestMetadata()));
+  const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path);
+  ASSERT_TRUE(report.ok()) << report.status();
+  EXPECT_EQ(report->probes, 0);
+  EXPECT_EQ(report->invalidProbes, 0);
+  ASSERT_EQ(report->grids.size(), 12u);
+  for (const GridReport& g : report->grids) {
+    EXPECT_EQ(g.activeVoxels, 0) << g.name;
+    EXPECT_EQ(g.mean[0], 0) << g.name;
+  }
+  const std::string text = FormatVolumeReport(*report);
+  EXPECT_NE(text.find("probes: 0 (invalid: 0)"), std::string::npos) << text;
+  EXPECT_NE(text.find("bbox empty"), std::string::npos) << text;
+  EXPECT_NE(VolumeReportJson(*report).find("\"bboxMin\":null"), std::string::npos);
 }
 
 TEST_F(Inspect, MissingFileIsNotFound) {

@@ -538,11 +538,16 @@ std::string FormatVolumeReport(const VolumeReport& report) {
   out += "grids (" + std::to_string(report.grids.size()) + "):\n";
   for (const GridReport& g : report.grids) {
     char line[256];
-    std::snprintf(line, sizeof line, "  %-18s %-6s active %-9lld bbox [%d,%d,%d]..[%d,%d,%d]",
-                  g.name.c_str(), g.valueType.c_str(), static_cast<long long>(g.activeVoxels),
-                  g.bboxMin[0], g.bboxMin[1], g.bboxMin[2], g.bboxMax[0], g.bboxMax[1],
-                  g.bboxMax[2]);
+    std::snprintf(line, sizeof line, "  %-18s %-6s active %-9lld ", g.name.c_str(),
+                  g.valueType.c_str(), static_cast<long long>(g.activeVoxels));
     out += line;
+    if (g.activeVoxels > 0) {
+      std::snprintf(line, sizeof line, "bbox [%d,%d,%d]..[%d,%d,%d]", g.bboxMin[0], g.bboxMin[1],
+                    g.bboxMin[2], g.bboxMax[0], g.bboxMax[1], g.bboxMax[2]);
+      out += line;
+    } else {
+      out += "bbox empty";
+    }
     auto channels = [&g](const double* v) {
       if (g.channels == 1) return Fixed(v[0]);
       std::string s = "(";
@@ -609,7 +614,8 @@ std::string VolumeReportJson(const VolumeReport& report) {
     out += std::string(i ? "," : "") + "{\"name\":" + JsonQuote(g.name) +
            ",\"type\":" + JsonQuote(g.type) + ",\"valueType\":" + JsonQuote(g.valueType) +
            ",\"activeVoxels\":" + std::to_string(g.activeVoxels) +
-           ",\"bboxMin\":" + ints(g.bboxMin) + ",\"bboxMax\":" + ints(g.bboxMax) +
+           ",\"bboxMin\":" + (g.activeVoxels > 0 ? ints(g.bboxMin) : "null") +
+           ",\"bboxMax\":" + (g.activeVoxels > 0 ? ints(g.bboxMax) : "null") +
            ",\"min\":" + numbers(g.min, g.channels) + ",\"max\":" + numbers(g.max, g.channels) +
            ",\"mean\":" + numbers(g.mean, g.channels) + "}";
   }

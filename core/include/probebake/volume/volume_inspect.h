@@ -26,7 +26,7 @@ struct GridReport {
   int bboxMin[3] = {0, 0, 0};
   int bboxMax[3] = {0, 0, 0};
   // Per channel (1 for float grids, 3 for vec3s grids, 0 for other value types) over the active
-  // voxels: minimum, maximum and mean, accumulated in double.
+  // voxels: minimum, maximum and mean, accumulated in double; 0 without active voxels.
   int channels = 0;
   double min[3] = {0, 0, 0};
   double max[3] = {0, 0, 0};
@@ -53,9 +53,10 @@ std::string FormatVolumeReport(const VolumeReport& report);
 
 // One JSON object: {"path", "fileBytes", "probes", "invalidProbes", "metadata": {name: value},
 // "grids": [{"name", "type", "valueType", "activeVoxels", "bboxMin", "bboxMax", "min", "max",
-// "mean"}]}. Metadata values are JSON numbers for int/float types, booleans for bool, arrays for
-// vectors, strings otherwise; string values that hold valid JSON (settings, stats) are embedded as
-// JSON. Statistics of 1-channel grids are still arrays (of one number).
+// "mean"}]} (bboxMin and bboxMax null for a grid without active voxels). Metadata values are JSON
+// numbers for int/float types, booleans for bool, arrays for vectors, strings otherwise; string
+// values that hold valid JSON (settings, stats) are embedded as JSON. Statistics of 1-channel grids
+// are still arrays (of one number).
 std::string VolumeReportJson(const VolumeReport& report);
 
 }  // namespace probebake
