@@ -72,8 +72,8 @@ std::string IrradianceGridName(int coefficient);
 //
 // Memory: grids are built, written and freed one at a time, so the extra memory while writing is
 // about one grid (one coefficient plane), not a copy of the volume. Measured on a dense 128^3 L2
-// volume (242 MiB in memory, a 226 MiB file): +15 MiB peak resident memory, +10 MiB with the
-// overload below.
+// volume (242 MiB in memory, a 226 MiB file): +10 to +18 MiB peak resident memory with either
+// overload (tests/volume/volume_bench.cpp).
 absl::Status WriteProbeVolume(const std::string& path, const ProbeVolume& volume,
                               const VolumeMetadata& meta);
 // As above, and releases each coefficient plane of `volume` (radiance, irradiance, validity,
