@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Regenerates the accuracy and speed benchmark (SPEC 7, tests/bench/README.md): installs the
+# dependencies, builds probebake-bench into $BUILD_DIR (default build/) and runs it. The full run
+# writes tests/bench/results/ (results.md, results.csv, results.json, adaptive_probes.csv,
+# error_vs_time_<scene>.svg) in about 20 minutes on a 2-core machine the first time, less once the
+# reference bakes are cached (${XDG_CACHE_HOME:-~/.cache}/probebake-bench, keyed by job digest).
+#
+#   scripts/bench.sh            # full run
+#   scripts/bench.sh --quick    # smoke check, ~1-2 minutes; reports in $BUILD_DIR/bench-work/quick-results
+#
+# Other arguments go to probebake-bench (--scenes demo,courtyard, --no-memory, --repeats N, ...).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+BUILD_DIR=${BUILD_DIR:-build}
+scripts/install-deps.sh
+cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release
+cmake --build "$BUILD_DIR" --target probebake-bench probebake_bake_bench -j"$(nproc)"
+echo "bench: load average before the run: $(cut -d' ' -f1-3 /proc/loadavg) (other work skews wall times)"
+exec "$BUILD_DIR/bin/probebake-bench" --source "$PWD" "$@"

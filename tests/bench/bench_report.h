@@ -1,0 +1,106 @@
+// What one benchmark run measured, and its reports: a README-ready markdown page, a CSV of every
+// bake, a JSON document of everything, per-probe CSV of the adaptive bakes, and one log-log
+// error-vs-time SVG plot per scene (written by hand: no plotting dependency).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "bench_metrics.h"
+#include "bench_raw_embree.h"
+
+namespace probebake::bench {
+
+// One bake of one configuration of one scene.
+struct BakeRow {
+  std::string scene;
+  std::string config;           // id, e.g. "nee_mis_sobol"
+  std::string label;            // legend text
+  std::string group;            // "ladder", "adaptive", "preset" or "depth"
+  std::string reference;        // "exact", "same depth" or "deep"
+  int64_t samplesPerProbe = 0;  // requested (the cap when adaptive)
+  double targetRelError = 0;
+  int shOrder = 0, maxDepth = 0, batches = 0, threads = 1;
+  std::string estimator, sampler;
+  bool russianRoulette = true;
+  double wallSeconds = 0;  // minimum over repeats
+  double cpuSeconds = 0;   // process CPU time, minimum over repeats
+  int64_t rays = 0, samples = 0, probes = 0;
+  bool repeatsIdentical = true;  // every repeat gave the same bits
+  ErrorSummary error;
+  // Adaptive only: share of probes whose reported std_error met the target (the rest hit the
+  // cap), and whose measured L0 error was within the target and twice the target.
+  double stoppedByTarget = 0, measuredWithinTarget = 0, measuredWithin2Target = 0;
+  // RMS of the measured L0 error over the probes stopped by the target (not by the cap), / target.
+  double stoppedRmsOverTarget = 0;
+  std::vector<ProbeErrors> probeErrors;  // kept for adaptive rows only
+};
+
+struct SceneInfo {
+  std::string name, description;
+  int64_t gridProbes = 0, bakedProbes = 0, triangles = 0;
+  std::string referenceText;        // how the reference was made, its own error
+  double depthBiasIrradiance = -1;  // mean rel irradiance difference, same-depth vs deep reference
+  int ladderDepth = 0, deepDepth = 0;
+};
+
+// The tracer's throughput next to raw Embree on the same scene.
+struct ThroughputInfo {
+  std::string scene;
+  double tracerCpuMrays = 0;   // rays per CPU second, default settings, 1 thread
+  double tracerWallMrays = 0;  // rays per wall second, same bake
+  int64_t rays = 0, samples = 0, intersectRays = 0, shadowRays = 0, validityRays = 0;
+  double embreeOnlySeconds = 0;          // CPU time raw Embree needs for the same ray mix
+  double embreeOnlySamplingSeconds = 0;  // the same without the validity rays
+  double bakeCpuSeconds = 0;
+  // A bake of one sample per probe: the fixed cost (BVH, lights, placement, validity rays).
+  double setupCpuSeconds = 0;
+  int64_t setupRays = 0;
+  RawEmbreeResult raw;
+};
+
+struct ScalingInfo {
+  std::string scene;
+  int64_t samplesPerProbe = 0, probes = 0;
+  std::vector<double> wall1, wall2, cpu1, cpu2;  // every repeat
+  double load = 0;
+  double rawRatio = 0;  // raw Embree 2-thread / 1-thread wall rate, same moment (control)
+};
+
+struct MemoryInfo {
+  bool measured = false;
+  std::string note;
+  int64_t probes = 0;
+  int shOrder = 0;
+  int64_t samplesPerProbe = 0;
+  double bakeSeconds = 0;
+  int64_t baselineRss = 0;     // before the job was built
+  int64_t peakBake = 0;        // VmHWM after the bake
+  int64_t shBytes = 0;         // radiance planes
+  int64_t volumeBytes = 0;     // every array of the ProbeVolume
+  int64_t peakWriteExtra = 0;  // VmHWM during the write minus RSS before it (-1 unknown)
+  int64_t vdbBytes = 0;
+  double writeSeconds = 0;
+};
+
+struct BenchResults {
+  bool quick = false;
+  std::string date, host, generator;
+  int hardwareThreads = 0;
+  double loadStart = 0, loadEnd = 0, totalSeconds = 0;
+  std::vector<int64_t> ladder;
+  std::vector<SceneInfo> scenes;
+  std::vector<BakeRow> rows;
+  std::vector<ThroughputInfo> throughput;
+  ScalingInfo scaling;
+  MemoryInfo memory;
+  std::string presetText;  // the current preset numbers
+};
+
+// Writes results.md, results.csv, results.json, adaptive_probes.csv and error_vs_time_<scene>.svg
+// into `dir`.
+absl::Status WriteReports(const BenchResults& results, const std::string& dir);
+
+}  // namespace probebake::bench

@@ -1,0 +1,41 @@
+// Small helpers of the accuracy and speed benchmark: clocks (wall, process CPU, thread CPU), the
+// machine's load, resident memory from /proc/self/status, and file I/O.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+
+namespace probebake::bench {
+
+// Monotonic wall clock, seconds since an arbitrary epoch.
+double WallSeconds();
+// CPU time (user + system) of the whole process, every thread, seconds.
+double ProcessCpuSeconds();
+// CPU time of the calling thread, seconds.
+double ThreadCpuSeconds();
+// The 1-minute load average (/proc/loadavg); -1 if unreadable.
+double LoadAverage1();
+// Hardware threads of the machine.
+int HardwareThreads();
+
+// Resident memory figures of this process from /proc/self/status, bytes; -1 if unavailable.
+int64_t PeakRssBytes();     // VmHWM
+int64_t CurrentRssBytes();  // VmRSS
+// Resets VmHWM to the current RSS (writes "5" to /proc/self/clear_refs). False if not permitted.
+bool ResetPeakRss();
+
+// The median of `values` (non-empty).
+double Median(std::vector<double> values);
+
+absl::StatusOr<std::string> ReadFileBytes(const std::string& path);
+// Writes `bytes` to `path` through a temporary file and a rename, so a reader never sees a
+// partial file. Creates the parent folder.
+absl::Status WriteFileAtomic(const std::string& path, const std::string& bytes);
+
+// printf-style formatting into a std::string.
+std::string Format(const char* format, ...) __attribute__((format(printf, 1, 2)));
+
+}  // namespace probebake::bench
