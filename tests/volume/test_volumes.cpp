@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <stdexcept>
 
 namespace probebake::testing {
@@ -91,6 +92,48 @@ ProbeVolume MakeTestVolume(const TestVolumeSpec& spec) {
   v.stats.rays = int64_t(1) << 40;
   v.stats.invalidProbes = invalidCount;
   return v;
+}
+
+void PrintTo(const AwkwardGrid& grid, std::ostream* os) {
+  *os << std::setprecision(17) << grid.name << ": origin (" << grid.origin.x << ", "
+      << grid.origin.y << ", " << grid.origin.z << "), spacing (" << grid.spacing.x << ", "
+      << grid.spacing.y << ", " << grid.spacing.z << "), counts " << grid.counts[0] << "x"
+      << grid.counts[1] << "x" << grid.counts[2];
+}
+
+std::vector<AwkwardGrid> AwkwardGrids() {
+  const double third = 1.0 / 3.0;
+  std::vector<AwkwardGrid> grids = {
+      // The service engineer's case: min 0, max 2, 4 probes per axis.
+      {"TwoThirds", {0, 0, 0}, {(2.0 - 0.0) / 3, (2.0 - 0.0) / 3, (2.0 - 0.0) / 3}, {4, 4, 4}},
+      // The same spacing from min -1, max 1: (s + t) - t no longer gives s back.
+      {"TwoThirdsFromMinusOne", {-1, -1, -1}, {2.0 / 3, 2.0 / 3, 2.0 / 3}, {4, 4, 4}},
+      {"OneThird", {0, 0, 0}, {third, third, third}, {4, 3, 2}},
+      {"Tenth", {-0.3, 0.7, 0.1}, {0.1, 0.1, 0.1}, {5, 4, 3}},
+      {"Milli", {0.001, -0.002, 0.003}, {1e-3, 1e-3, 1e-3}, {5, 4, 3}},
+      {"TenThousandThirds", {-1e4, 0, 1e4}, {1e4 / 3, 1e4 / 3, 1e4 / 3}, {4, 3, 2}},
+      {"PerAxis", {0.25, -1.5, 3.0}, {third, 0.1, 1e4 / 3}, {4, 5, 3}},
+      {"FarOriginTwoThirds", {1e5, -1e5, 1e5}, {2.0 / 3, 2.0 / 3, 2.0 / 3}, {4, 4, 4}},
+      {"FarOriginMilli", {1e5 + 0.1, -1e5 - 0.1, 1e5 / 3}, {1e-3, 0.1, third}, {5, 4, 3}},
+  };
+  // The baker's spacing: (max - min) / (n - 1) per axis, with different n per axis.
+  const double minima[] = {0.0, -1.7, 12345.678, 1e5};
+  const double extents[] = {1.0, 2.0, 0.3, 7.0, 1e4};
+  const int counts[] = {3, 4, 6, 7, 10};
+  int index = 0;
+  for (const double lo : minima) {
+    for (const double extent : extents) {
+      for (const int n : counts) {
+        const int ny = 2 + n % 4, nz = 2 + (n + 1) % 3;
+        const double hi = lo + extent;
+        grids.push_back({"Sweep" + std::to_string(index++),
+                         {lo, -lo, lo * 0.5},
+                         {(hi - lo) / (n - 1), (hi - lo) / (ny - 1), (hi - lo) / (nz - 1)},
+                         {n, ny, nz}});
+      }
+    }
+  }
+  return grids;
 }
 
 VolumeMetadata MakeTestMetadata() {

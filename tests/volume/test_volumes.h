@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstdint>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,20 @@ struct TestVolumeSpec {
 // Deterministic pseudo-random contents; inactive probes hold 0 in every plane (files do not
 // store them, so a read gives 0 there). Stats and window are filled too.
 ProbeVolume MakeTestVolume(const TestVolumeSpec& spec);
+
+// A grid whose origin and spacing are awkward in binary floating point: spacings such as 2/3 that
+// the baker computes as (max - min) / (n - 1), per-axis different spacings, origins far from 0.
+struct AwkwardGrid {
+  std::string name;  // a valid gtest parameter name
+  Vec3d origin;
+  Vec3d spacing;
+  int counts[3];
+};
+// Prints the name, origin, spacing and counts (gtest's default prints raw bytes).
+void PrintTo(const AwkwardGrid& grid, std::ostream* os);
+// A fixed list of named cases followed by a sweep of (max - min) / (n - 1) spacings over several
+// minima, extents and counts.
+std::vector<AwkwardGrid> AwkwardGrids();
 
 // Metadata with every field non-trivial (seed above 2^63, JSON with quotes and non-ASCII).
 VolumeMetadata MakeTestMetadata();

@@ -118,6 +118,32 @@ INSTANTIATE_TEST_SUITE_P(
                       RoundTripCase{"L1EveryProbeInactive", {2, 3, 2}, 1, false, 1}),
     [](const ::testing::TestParamInfo<RoundTripCase>& param) { return param.param.name; });
 
+// Spacings such as 2/3 = (2 - 0) / (4 - 1) and origins far from 0 read back: the file's
+// grid_min and grid_spacing are authoritative and restore the written doubles exactly, the
+// transform only has to agree with them (vdb_layout_test checks the transform itself).
+class AwkwardSpacing : public ::testing::TestWithParam<testing::AwkwardGrid> {};
+
+TEST_P(AwkwardSpacing, ReadsBackTheExactOriginAndSpacing) {
+  const testing::AwkwardGrid& g = GetParam();
+  TestVolumeSpec spec;
+  spec.origin = g.origin;
+  spec.spacing = g.spacing;
+  for (int a = 0; a < 3; ++a) spec.counts[a] = g.counts[a];
+  spec.shOrder = 0;
+  const ProbeVolume volume = MakeTestVolume(spec);
+  TempDir dir;
+  const std::string path = dir.File("awkward.vdb");
+  PB_ASSERT_OK(WriteProbeVolume(path, volume, MakeTestMetadata()));
+  const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  ExpectSameVolume(volume, read->volume);
+}
+
+INSTANTIATE_TEST_SUITE_P(Grids, AwkwardSpacing, ::testing::ValuesIn(testing::AwkwardGrids()),
+                         [](const ::testing::TestParamInfo<testing::AwkwardGrid>& param) {
+                           return param.param.name;
+                         });
+
 TEST(VdbIo, RawMetadataHoldsEveryKeyAsText) {
   TestVolumeSpec spec;
   spec.irradiance = true;

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <set>
 
 #include <openvdb/io/File.h>
@@ -348,11 +349,99 @@ TEST_F(VdbLayout, ReaderRejectsBrokenFilesNamingTheGridOrKey) {
     m->insertMeta("grid_min", vdb::Vec3DMetadata(vdb::Vec3d(0, 0, 0)));
     expectError(WriteAndRead(good, *m), "grid_min", "disagrees");
     m = meta->copyMeta();
+    m->removeMeta("grid_spacing");
+    m->insertMeta("grid_spacing", vdb::Vec3DMetadata(vdb::Vec3d(0.5, 0, 2)));
+    expectError(WriteAndRead(good, *m), "grid_spacing", "must be finite and > 0");
+    // Spacing x 0.5 at origin -3.5: the reader allows gamma2 (0.5 + 3.5) + 1e-15 ~ 1.9e-15
+    // (TransformScaleTolerance in vdb_read.cpp); 1e-14 is beyond, 1e-15 within.
+    m = meta->copyMeta();
+    m->removeMeta("grid_spacing");
+    m->insertMeta("grid_spacing", vdb::Vec3DMetadata(vdb::Vec3d(0.5 + 1e-14, 1.25, 2)));
+    expectError(WriteAndRead(good, *m), "grid_spacing", "disagrees");
+    m = meta->copyMeta();
+    m->removeMeta("grid_spacing");
+    m->insertMeta("grid_spacing", vdb::Vec3DMetadata(vdb::Vec3d(0.5 + 1e-15, 1.25, 2)));
+    {
+      const std::string path = dir_.File("within.vdb");
+      vdb::io::File(path).write(good, *m);
+      const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
+      ASSERT_TRUE(read.ok()) << read.status();
+      EXPECT_EQ(read->volume.grid.spacing.x, 0.5 + 1e-15);  // the metadata is authoritative
+    }
+    m = meta->copyMeta();
     m->removeMeta("probebake_format");
     m->insertMeta("probebake_format", vdb::Int32Metadata(2));
     expectError(WriteAndRead(good, *m), "probebake_format", "2");
   }
 }
+
+// Awkward spacings (2/3, 0.1, 1e-3, 1e4/3, per axis) and origins far from 0: OpenVDB's Transform
+// constructor re-derives the voxel size as fl(fl(s + t) - t) (math::simplify), so the file's
+// transform is the spacing only to within rounding; index (i, j, k) must still map to
+// min + spacing * (i, j, k) to within that rounding.
+class AwkwardLayout : public ::testing::TestWithParam<testing::AwkwardGrid> {
+ protected:
+  static void SetUpTestSuite() { vdb::initialize(); }
+};
+
+TEST_P(AwkwardLayout, IndexToWorldIsMinPlusSpacingTimesIndexWithinRounding) {
+  const testing::AwkwardGrid& c = GetParam();
+  TestVolumeSpec spec;
+  spec.origin = c.origin;
+  spec.spacing = c.spacing;
+  for (int a = 0; a < 3; ++a) spec.counts[a] = c.counts[a];
+  spec.shOrder = 0;
+  const ProbeVolume volume = MakeTestVolume(spec);
+  TempDir dir;
+  const std::string path = dir.File("awkward.vdb");
+  PB_ASSERT_OK(WriteProbeVolume(path, volume, MakeTestMetadata()));
+
+  vdb::io::File file(path);
+  file.open(false);
+  const vdb::GridBase::Ptr grid = file.readGrid("validity");
+  file.close();
+  const vdb::math::Transform& transform = grid->constTransform();
+  ASSERT_TRUE(transform.isLinear());
+
+  // Unit roundoff u = 2^-53 and Higham's gamma2 = 2u / (1 - 2u) bound two roundings.
+  constexpr double u = std::numeric_limits<double>::epsilon() / 2;
+  constexpr double gamma2 = 2 * u / (1 - 2 * u);
+  const ProbeGrid& g = volume.grid;
+  double scaleTolerance[3];
+  const vdb::Vec3d voxelSize = transform.voxelSize();
+  for (int a = 0; a < 3; ++a) {
+    // fl(fl(s + t) - t) is within gamma2 (|s| + |t|) of s; OpenVDB then makes the map uniform
+    // when the three scales agree within math::Tolerance<double> = 1e-15 (absolute).
+    scaleTolerance[a] = gamma2 * (g.spacing[a] + std::abs(g.origin[a])) + 1e-15;
+    EXPECT_LE(std::abs(voxelSize[a] - g.spacing[a]), scaleTolerance[a])
+        << "axis " << a << ": expected " << g.spacing[a] << ", got " << voxelSize[a];
+  }
+  for (int k = 0; k < g.counts[2]; ++k) {
+    for (int j = 0; j < g.counts[1]; ++j) {
+      for (int i = 0; i < g.counts[0]; ++i) {
+        const vdb::Vec3d w = transform.indexToWorld(vdb::Coord(i, j, k));
+        const Vec3d p = g.Position(i, j, k);
+        const int ijk[3] = {i, j, k};
+        for (int a = 0; a < 3; ++a) {
+          // OpenVDB computes fl(fl(n s') + t), Position fl(fl(n s) + t), |s' - s| <= tau: each
+          // is within gamma2 (n |s| + |t|) of its exact value (s' within tau of s), so they
+          // differ by at most n tau + gamma2 (n (2 |s| + tau) + 2 |t|).
+          const double n = ijk[a], s = g.spacing[a], t = std::abs(g.origin[a]);
+          const double tau = scaleTolerance[a];
+          const double tolerance = n * tau + gamma2 * (n * (2 * s + tau) + 2 * t);
+          ASSERT_LE(std::abs(w[a] - p[a]), tolerance)
+              << "(" << i << ", " << j << ", " << k << ") axis " << a << ": expected " << p[a]
+              << ", got " << w[a] << ", tolerance " << tolerance;
+        }
+      }
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Grids, AwkwardLayout, ::testing::ValuesIn(testing::AwkwardGrids()),
+                         [](const ::testing::TestParamInfo<testing::AwkwardGrid>& param) {
+                           return param.param.name;
+                         });
 
 TEST_F(VdbLayout, CountsComeFromTheActiveBoxWithoutGridCounts) {
   // Make the last probe active so the active box reaches the grid's far corner.

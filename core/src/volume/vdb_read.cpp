@@ -170,6 +170,22 @@ absl::Status GridFromTransform(const std::string& path, const std::string& gridN
   return absl::OkStatus();
 }
 
+// How far the voxel size of a grid written by WriteProbeVolume may be from the spacing it was
+// given, on an axis with spacing s > 0 and origin t. Every openvdb::math::Transform built from a
+// linear map is "simplified" by its constructor (math::simplify): the translation is taken as
+// applyMap(0, 0, 0) = t, exactly, but the scale as applyMap(1, 1, 1) - applyMap(0, 0, 0) =
+// fl(fl(s + t) - t). Two roundings (unit roundoff u = 2^-53) give |fl(fl(s + t) - t) - s| <=
+// u |s + t| (1 + u) + u |s| <= gamma2 (|s| + |t|), gamma2 = 2u / (1 - 2u). When the three
+// re-derived scales then agree to within math::Tolerance<double> (1e-15, absolute), the map
+// becomes a uniform one holding the x scale on every axis, moving the y and z scales by up to
+// that much more. Hence gamma2 (|s| + |t|) + 1e-15; a spacing of 2/3 at origin 1e5 moves by
+// ~5e-12, which this bound (~2.2e-11) covers.
+double TransformScaleTolerance(double spacing, double origin) {
+  constexpr double u = std::numeric_limits<double>::epsilon() / 2;
+  constexpr double gamma2 = 2 * u / (1 - 2 * u);
+  return gamma2 * (std::abs(spacing) + std::abs(origin)) + vdb::math::Tolerance<double>::value();
+}
+
 struct ExpectedGrid {
   std::string name;
   bool vec3;  // Vec3SGrid, else FloatGrid
@@ -276,15 +292,38 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
     }
   }
   ProbeGrid& grid = layout.grid;
-  for (const char* key : {kKeyGridMin, kKeyGridSpacing}) {
-    if (!meta.Has(key)) continue;
-    vdb::Vec3d value;
-    PB_RETURN_IF_ERROR(meta.Get(key, &value));
-    const Vec3d fromTransform = key == std::string(kKeyGridMin) ? grid.origin : grid.spacing;
-    if (value != vdb::Vec3d(fromTransform.x, fromTransform.y, fromTransform.z)) {
-      return meta.Error(
-          key, VecText(value) + " disagrees with the grids' transform " + VecText(fromTransform));
+  // grid_min and grid_spacing, when present, are authoritative: they hold the doubles the writer
+  // was given, whereas the transform holds OpenVDB's re-derivation of them (see
+  // TransformScaleTolerance). The transform must agree with them.
+  if (meta.Has(kKeyGridMin)) {
+    vdb::Vec3d min;
+    PB_RETURN_IF_ERROR(meta.Get(kKeyGridMin, &min));
+    for (int a = 0; a < 3; ++a) {
+      if (!std::isfinite(min[a])) return meta.Error(kKeyGridMin, VecText(min) + " is not finite");
+      // The translation is stored exactly (only the sign of a zero may be lost).
+      if (min[a] != grid.origin[a]) {
+        return meta.Error(kKeyGridMin, VecText(min) + " disagrees with the grids' translation " +
+                                           VecText(grid.origin));
+      }
     }
+    grid.origin = {min[0], min[1], min[2]};
+  }
+  if (meta.Has(kKeyGridSpacing)) {
+    vdb::Vec3d spacing;
+    PB_RETURN_IF_ERROR(meta.Get(kKeyGridSpacing, &spacing));
+    for (int a = 0; a < 3; ++a) {
+      if (!(std::isfinite(spacing[a]) && spacing[a] > 0)) {
+        return meta.Error(kKeyGridSpacing, VecText(spacing) + " must be finite and > 0");
+      }
+      const double tolerance = TransformScaleTolerance(spacing[a], grid.origin[a]);
+      if (!(std::abs(grid.spacing[a] - spacing[a]) <= tolerance)) {
+        return meta.Error(kKeyGridSpacing,
+                          VecText(spacing) + " disagrees with the grids' voxel size " +
+                              VecText(grid.spacing) + " on axis " + std::to_string(a) +
+                              " by more than OpenVDB's rounding (" + NumberText(tolerance) + ")");
+      }
+    }
+    grid.spacing = {spacing[0], spacing[1], spacing[2]};
   }
   if (meta.Has(kKeyGridPlacement)) {
     std::string placement;

@@ -11,7 +11,13 @@
 //   file_bbox_min/max, file_voxel_count, file_mem_bytes and file_compression).
 // - One transform shared by every grid: a linear scale-translate map with voxel size = probe
 //   spacing per axis, so index (i, j, k) maps to world origin + spacing * (i, j, k): integer
-//   index coordinates are voxel centres, and voxel centres are probes.
+//   index coordinates are voxel centres, and voxel centres are probes. The translation is the
+//   origin exactly, the voxel size the spacing up to rounding: OpenVDB's Transform constructor
+//   re-derives the scale s of a map with translation t as fl(fl(s + t) - t), and makes the map
+//   uniform (the x scale on every axis) when the three agree to within 1e-15. So the stored voxel
+//   size is within gamma2 (|s| + |t|) + 1e-15 of the spacing, gamma2 = 2u / (1 - 2u), u = 2^-53
+//   (e.g. 2/3 at origin 1e5 is stored as 0.6666666666715173). grid_min and grid_spacing below
+//   hold the exact doubles.
 // - Active voxels are exactly the baked probes (ProbeVolume::active), identical in every grid;
 //   inactive voxels hold the background 0: values of unbaked probes are not stored, and read back
 //   as 0.
@@ -93,12 +99,15 @@ struct ProbeVolumeFile {
 };
 
 // Reads a file written by WriteProbeVolume, bit for bit: every float, the active mask, the grid
-// (origin and spacing from the transform, counts from grid_counts, or from the active bounding
-// box when that key is absent) and the metadata. Validates the format: missing, unexpected or
-// mistyped grids, a transform that is not an axis-aligned positive scale + translation or differs
-// between grids, active voxels that differ between grids or lie outside the grid, metadata of the
-// wrong type. Errors are INVALID_ARGUMENT "<path>: <grid or key>: <reason>" (NOT_FOUND when the
-// file does not exist).
+// and the metadata. The grid's origin and spacing are grid_min and grid_spacing, which are
+// authoritative (exactly the doubles written); the transform must agree with them: translation
+// exactly, voxel size to within the rounding bound above. Without those keys they come from the
+// transform. Counts come from grid_counts, or from the active bounding box when that key is
+// absent. Validates the format: missing, unexpected or mistyped grids, a transform that is not an
+// axis-aligned positive scale + translation or differs between grids, a transform that disagrees
+// with grid_min / grid_spacing, active voxels that differ between grids or lie outside the grid,
+// metadata of the wrong type. Errors are INVALID_ARGUMENT "<path>: <grid or key>: <reason>"
+// (NOT_FOUND when the file does not exist).
 absl::StatusOr<ProbeVolumeFile> ReadProbeVolume(const std::string& path);
 
 }  // namespace probebake
