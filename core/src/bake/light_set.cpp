@@ -254,6 +254,44 @@ bool LightSet::Sample(const Vec3d& p, const Vec3d* n, std::span<const double> im
   return sample->pdf > 0;
 }
 
+namespace {
+
+// A point q sampled on a rect or disk light seen from p: direction, distance, radiance and pdf
+// (solidAnglePdf when q was sampled by solid angle, else the area pdf turned into solid angle).
+// False when q cannot light p (behind a one-sided light, or grazing).
+bool FinishAreaSampleImpl(const Vec3d& axis, double area, bool twoSided, const Vec3d& radiance,
+                          const Vec3d& p, const Vec3d& q, double solidAnglePdf, LightSample* s) {
+  const Vec3d v = q - p;
+  const double d2 = LengthSquared(v);
+  if (!(d2 > 0)) return false;
+  const double d = std::sqrt(d2);
+  s->wi = v / d;
+  const double cosLight = -Dot(s->wi, axis);
+  if ((cosLight <= 0 && !twoSided) || cosLight == 0) return false;
+  s->distance = d;
+  s->point = q;
+  s->radiance = radiance;
+  s->pdf = solidAnglePdf > 0 ? solidAnglePdf : d2 / (area * std::abs(cosLight));
+  return true;
+}
+
+// cos of the half-angle of the cap a sphere light subtends from p; false when p is inside it
+// (the surface emits outward only).
+bool SphereCapCos(const Vec3d& centre, double radius, const Vec3d& p, double* cosMax) {
+  const double dc2 = LengthSquared(centre - p);
+  const double r2 = radius * radius;
+  if (dc2 <= r2) return false;
+  *cosMax = std::sqrt(std::max(0.0, 1 - r2 / dc2));
+  return true;
+}
+
+}  // namespace
+
+bool LightSet::FinishAreaSample(const LightData& l, const Vec3d& p, const Vec3d& q,
+                                double solidAnglePdf, LightSample* s) const {
+  return FinishAreaSampleImpl(l.axis, l.area, l.twoSided, l.radiance, p, q, solidAnglePdf, s);
+}
+
 bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, const Vec3d* n,
                          const Vec2d& u, LightSample* s) const {
   s->delta = false;
@@ -272,26 +310,14 @@ bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, con
     }
     case Kind::kRect:
     case Kind::kDisk: {
-      Vec3d q;
       if (l.kind == Kind::kRect && l.rectangular) {
         // Solid-angle sampling, unless the rectangle is too small a target for it (then area
         // sampling below, with the same u: the choice depends on p alone, as in EvalSurfaceHit).
         const SphericalRectangleSample r =
             SampleSphericalRectangle(u, p, l.position, l.edge1, l.edge2);
-        if (r.pdf > 0 && r.pdf <= kMaxSolidAnglePdf) {
-          const Vec3d v = r.p - p;
-          const double d = Length(v);
-          if (!(d > 0)) return false;
-          s->wi = v / d;
-          const double cosLight = -Dot(s->wi, l.axis);
-          if ((cosLight <= 0 && !l.twoSided) || cosLight == 0) return false;
-          s->distance = d;
-          s->point = r.p;
-          s->radiance = l.radiance;
-          s->pdf = r.pdf;
-          return true;
-        }
+        if (r.pdf > 0 && r.pdf <= kMaxSolidAnglePdf) return FinishAreaSample(l, p, r.p, r.pdf, s);
       }
+      Vec3d q;
       if (l.kind == Kind::kRect) {
         q = SampleUniformParallelogram(u, l.position, l.edge1, l.edge2);
       } else {
@@ -299,29 +325,15 @@ bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, con
         const Framed f = Framed::FromZ(l.axis);
         q = l.position + (f.s * d.x + f.t * d.y) * l.radius;
       }
-      const Vec3d v = q - p;
-      const double d2 = LengthSquared(v);
-      if (!(d2 > 0)) return false;
-      const double d = std::sqrt(d2);
-      s->wi = v / d;
-      const double cosLight = -Dot(s->wi, l.axis);
-      if (cosLight <= 0 && !l.twoSided) return false;
-      if (cosLight == 0) return false;
-      s->distance = d;
-      s->point = q;
-      s->radiance = l.radiance;
-      s->pdf = d2 / (l.area * std::abs(cosLight));
-      return true;
+      return FinishAreaSample(l, p, q, 0, s);
     }
     case Kind::kSphere: {
+      double cosMax;
+      if (!SphereCapCos(l.position, l.radius, p, &cosMax)) return false;
       const Vec3d toCentre = l.position - p;
       const double dc2 = LengthSquared(toCentre);
       const double r2 = l.radius * l.radius;
-      if (dc2 <= r2) return false;
-      const double dc = std::sqrt(dc2);
-      const double sin2 = r2 / dc2;
-      const double cosMax = std::sqrt(std::max(0.0, 1 - sin2));
-      const Vec3d axis = toCentre / dc;
+      const Vec3d axis = toCentre / std::sqrt(dc2);
       const Vec3d local = SampleUniformCone(u, cosMax);
       s->wi = Framed::FromZ(axis).FromLocal(local);
       // Nearest intersection with the sphere; at the silhouette rounding may leave the
@@ -423,11 +435,8 @@ bool LightSet::EvalSurfaceHit(const Vec3d& p, const Vec3d* n, std::span<const do
       return true;
     }
     case Kind::kSphere: {
-      const Vec3d toCentre = l.position - p;
-      const double dc2 = LengthSquared(toCentre);
-      const double r2 = l.radius * l.radius;
-      if (dc2 <= r2) return false;
-      const double cosMax = std::sqrt(std::max(0.0, 1 - r2 / dc2));
+      double cosMax;
+      if (!SphereCapCos(l.position, l.radius, p, &cosMax)) return false;
       out->pdf = pmf * UniformConePdf(cosMax);
       return true;
     }

@@ -122,6 +122,8 @@ class LightSet {
   bool SampleOne(const LightData& l, uint32_t index, const Vec3d& p, const Vec3d* n, const Vec2d& u,
                  LightSample* s) const;
   double SpotFalloff(const LightData& l, const Vec3d& wFromLight) const;
+  bool FinishAreaSample(const LightData& l, const Vec3d& p, const Vec3d& q, double solidAnglePdf,
+                        LightSample* s) const;
   // The solid-angle pdf of a rectangular light seen from p, or 0 when it is sampled by area.
   double SolidAnglePdf(const LightData& l, const Vec3d& p) const;
 

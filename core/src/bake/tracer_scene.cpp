@@ -64,6 +64,37 @@ Vec3d Vertex(const float* v, uint32_t i) {
   return {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
 }
 
+// One Embree point (sphere or disc) at local `centre` with `radius`; grows the bounds by its box.
+template <typename Grow>
+RTCGeometry NewPointGeometry(RTCDevice device, RTCGeometryType type, const Vec3d& centre,
+                             double radius, Grow&& grow) {
+  RTCGeometry geom = rtcNewGeometry(device, type);
+  auto* v = static_cast<float*>(
+      rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 16, 1));
+  v[0] = float(centre.x), v[1] = float(centre.y), v[2] = float(centre.z), v[3] = float(radius);
+  grow(centre - Vec3d{radius, radius, radius});
+  grow(centre + Vec3d{radius, radius, radius});
+  return geom;
+}
+
+// An Embree ray origin + t dir, t in (0, tMax) (tMax may be infinite), all masks.
+void InitRay(RTCRay& ray, const Vec3f& origin, const Vec3d& dir, double tMax) {
+  ray.org_x = origin.x;
+  ray.org_y = origin.y;
+  ray.org_z = origin.z;
+  ray.tnear = 0;
+  ray.dir_x = float(dir.x);
+  ray.dir_y = float(dir.y);
+  ray.dir_z = float(dir.z);
+  ray.time = 0;
+  ray.tfar = tMax >= double(std::numeric_limits<float>::max())
+                 ? std::numeric_limits<float>::infinity()
+                 : float(tMax);
+  ray.mask = 0xFFFFFFFFu;
+  ray.id = 0;
+  ray.flags = 0;
+}
+
 }  // namespace
 
 struct TracerScene::Impl {
@@ -209,26 +240,16 @@ absl::StatusOr<std::unique_ptr<TracerScene>> TracerScene::Build(const Scene& sce
       std::copy(tris, tris + 6, idx);
       attach(geom, SurfaceKind::kRectLight, i);
     } else if (const auto* disk = std::get_if<DiskLight>(&light)) {
-      RTCGeometry geom = rtcNewGeometry(impl.device, RTC_GEOMETRY_TYPE_ORIENTED_DISC_POINT);
-      auto* v = static_cast<float*>(
-          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 16, 1));
+      RTCGeometry geom = NewPointGeometry(impl.device, RTC_GEOMETRY_TYPE_ORIENTED_DISC_POINT,
+                                          disk->center - offset, disk->radius, grow);
       auto* n = static_cast<float*>(
           rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_NORMAL, 0, RTC_FORMAT_FLOAT3, 12, 1));
-      const Vec3d c = disk->center - offset;
-      v[0] = float(c.x), v[1] = float(c.y), v[2] = float(c.z), v[3] = float(disk->radius);
       n[0] = float(disk->normal.x), n[1] = float(disk->normal.y), n[2] = float(disk->normal.z);
-      grow(c - Vec3d{disk->radius, disk->radius, disk->radius});
-      grow(c + Vec3d{disk->radius, disk->radius, disk->radius});
       attach(geom, SurfaceKind::kDiskLight, i);
     } else if (const auto* sphere = std::get_if<SphereLight>(&light)) {
-      RTCGeometry geom = rtcNewGeometry(impl.device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-      auto* v = static_cast<float*>(
-          rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 16, 1));
-      const Vec3d c = sphere->center - offset;
-      v[0] = float(c.x), v[1] = float(c.y), v[2] = float(c.z), v[3] = float(sphere->radius);
-      grow(c - Vec3d{sphere->radius, sphere->radius, sphere->radius});
-      grow(c + Vec3d{sphere->radius, sphere->radius, sphere->radius});
-      attach(geom, SurfaceKind::kSphereLight, i);
+      attach(NewPointGeometry(impl.device, RTC_GEOMETRY_TYPE_SPHERE_POINT, sphere->center - offset,
+                              sphere->radius, grow),
+             SurfaceKind::kSphereLight, i);
     }
   }
 
@@ -243,20 +264,7 @@ bool TracerScene::Intersect(const Vec3f& origin, const Vec3d& dir, double tMax,
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   RTCRayHit rh;
-  rh.ray.org_x = origin.x;
-  rh.ray.org_y = origin.y;
-  rh.ray.org_z = origin.z;
-  rh.ray.tnear = 0;
-  rh.ray.dir_x = float(dir.x);
-  rh.ray.dir_y = float(dir.y);
-  rh.ray.dir_z = float(dir.z);
-  rh.ray.time = 0;
-  rh.ray.tfar = tMax >= double(std::numeric_limits<float>::max())
-                    ? std::numeric_limits<float>::infinity()
-                    : float(tMax);
-  rh.ray.mask = 0xFFFFFFFFu;
-  rh.ray.id = 0;
-  rh.ray.flags = 0;
+  InitRay(rh.ray, origin, dir, tMax);
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
@@ -289,20 +297,7 @@ bool TracerScene::Occluded(const Vec3f& origin, const Vec3d& dir, double tMax) c
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   RTCRay ray;
-  ray.org_x = origin.x;
-  ray.org_y = origin.y;
-  ray.org_z = origin.z;
-  ray.tnear = 0;
-  ray.dir_x = float(dir.x);
-  ray.dir_y = float(dir.y);
-  ray.dir_z = float(dir.z);
-  ray.time = 0;
-  ray.tfar = tMax >= double(std::numeric_limits<float>::max())
-                 ? std::numeric_limits<float>::infinity()
-                 : float(tMax);
-  ray.mask = 0xFFFFFFFFu;
-  ray.id = 0;
-  ray.flags = 0;
+  InitRay(ray, origin, dir, tMax);
   rtcOccluded1(impl_->scene, &context, &ray);
   return ray.tfar < 0;
 }
