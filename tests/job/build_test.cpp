@@ -239,22 +239,22 @@ TEST(ResolveSettings, Defaults) {
 
 TEST(ResolveSettings, PresetsAndExplicitNumbersWin) {
   const BakeSettings preview = SettingsOf(R"({"quality": "PREVIEW"})");
-  EXPECT_EQ(preview.samplesPerProbe, 256);
-  EXPECT_EQ(preview.maxDepth, 4);
+  EXPECT_EQ(preview.samplesPerProbe, 512);
+  EXPECT_EQ(preview.maxDepth, 6);
   EXPECT_EQ(preview.targetRelError, 0.05);
   const BakeSettings production = SettingsOf(R"({"quality": "PRODUCTION"})");
-  EXPECT_EQ(production.samplesPerProbe, 1024);
+  EXPECT_EQ(production.samplesPerProbe, 4096);
   EXPECT_EQ(production.maxDepth, 8);
-  EXPECT_EQ(production.targetRelError, 0.01);
+  EXPECT_EQ(production.targetRelError, 0.02);
   const BakeSettings reference = SettingsOf(R"({"quality": "REFERENCE"})");
   EXPECT_EQ(reference.samplesPerProbe, 16384);
-  EXPECT_EQ(reference.maxDepth, 16);
+  EXPECT_EQ(reference.maxDepth, 32);
   EXPECT_EQ(reference.targetRelError, 0);
 
   const BakeSettings mixed =
       SettingsOf(R"({"quality": "PREVIEW", "samplesPerProbe": 100, "targetRelError": 0})");
   EXPECT_EQ(mixed.samplesPerProbe, 100);
-  EXPECT_EQ(mixed.maxDepth, 4);  // from the preset
+  EXPECT_EQ(mixed.maxDepth, 6);  // from the preset
   EXPECT_EQ(mixed.targetRelError, 0);
 }
 
@@ -363,7 +363,7 @@ TEST(Digests, PresetAndTheSameExplicitNumbersAgree) {
   const absl::StatusOr<BakeJob> preset =
       BuildFromData(Patched(kGridOnly, "settings", R"({"quality": "PREVIEW"})"));
   const absl::StatusOr<BakeJob> explicitNumbers = BuildFromData(Patched(
-      kGridOnly, "settings", R"({"samplesPerProbe": 256, "maxDepth": 4, "targetRelError": 0.05})"));
+      kGridOnly, "settings", R"({"samplesPerProbe": 512, "maxDepth": 6, "targetRelError": 0.05})"));
   ASSERT_TRUE(preset.ok() && explicitNumbers.ok());
   EXPECT_EQ(preset->jobDigest, explicitNumbers->jobDigest);
 }

@@ -289,14 +289,14 @@ TEST(ValidateJobSpec, SampleAndDepthLimitsIncludePresets) {
                             "settings.samplesPerProbe", "above the limit of 4096"));
   EXPECT_TRUE(HasFieldError(CheckPatched("settings.maxDepth", "11", limits), "settings.maxDepth",
                             "above the limit of 10"));
-  // REFERENCE stands for 16384 samples and depth 16 unless numbers are given.
+  // REFERENCE stands for 16384 samples and depth 32 unless numbers are given.
   const std::string reference =
       Patched(Patched(Patched(Example(), "settings.samplesPerProbe", ""), "settings.maxDepth", ""),
               "settings.quality", "\"REFERENCE\"");
   EXPECT_TRUE(HasFieldError(Check(reference, limits), "settings.quality (REFERENCE)",
                             "16384 samples per probe, above the limit of 4096"));
   EXPECT_TRUE(HasFieldError(Check(reference, limits), "settings.quality (REFERENCE)",
-                            "maxDepth 16 is above the limit of 10"));
+                            "maxDepth 32 is above the limit of 10"));
   EXPECT_TRUE(Check(Patched(Patched(reference, "settings.samplesPerProbe", "100"),
                             "settings.maxDepth", "5"),
                     limits)

@@ -54,8 +54,9 @@ absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& job, const AssetSource& 
 // a local bake's whole input step. Every error line starts with "<path>: ".
 absl::StatusOr<BakeJob> LoadBakeJob(const std::string& path, const JobLimits& limits);
 
-// Numbers a quality preset stands for. Placeholders, to be calibrated in issue 5 (the accuracy
-// benchmark): PREVIEW 256 / 4 / 0.05, PRODUCTION 1024 / 8 / 0.01, REFERENCE 16384 / 16 / 0.
+// Numbers a quality preset stands for (samplesPerProbe / maxDepth / targetRelError), calibrated
+// with the accuracy benchmark (tests/bench): PREVIEW 512 / 6 / 0.05, PRODUCTION 4096 / 8 / 0.02,
+// REFERENCE 16384 / 32 / 0.
 struct QualityPreset {
   int64_t samplesPerProbe;
   int maxDepth;
