@@ -189,11 +189,19 @@ TEST(VdbIo, RawMetadataHoldsEveryKeyAsText) {
       << stats;
 }
 
+// The tracer's optional per-coefficient standard errors and AUTO window t, filled as it does.
+void FillTracerExtras(ProbeVolume* v) {
+  const size_t probes = size_t(v->grid.ProbeCount());
+  v->radianceStdError.assign(size_t(v->CoeffCount()), std::vector<float>(3 * probes, 0.25f));
+  v->autoWindowT.assign(probes, 0.125f);
+}
+
 TEST(VdbIo, RvalueOverloadWritesTheSameAndReleasesPlanes) {
   TestVolumeSpec spec;
   spec.irradiance = true;
   const ProbeVolume volume = MakeTestVolume(spec);
   ProbeVolume consumed = volume;
+  FillTracerExtras(&consumed);
   TempDir dir;
   const std::string path = dir.File("moved.vdb");
   PB_ASSERT_OK(WriteProbeVolume(path, std::move(consumed), MakeTestMetadata()));
@@ -202,9 +210,41 @@ TEST(VdbIo, RvalueOverloadWritesTheSameAndReleasesPlanes) {
   EXPECT_TRUE(consumed.validity.empty());
   EXPECT_TRUE(consumed.stdError.empty());
   EXPECT_TRUE(consumed.sampleCount.empty());
+  EXPECT_TRUE(consumed.radianceStdError.empty()) << consumed.radianceStdError.size();
+  EXPECT_TRUE(consumed.autoWindowT.empty()) << consumed.autoWindowT.size();
+  EXPECT_EQ(consumed.radianceStdError.capacity(), 0u);
+  EXPECT_EQ(consumed.autoWindowT.capacity(), 0u);
   EXPECT_EQ(consumed.active, volume.active);  // kept
   const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
   ASSERT_TRUE(read.ok()) << read.status();
+  ExpectSameVolume(volume, read->volume);
+}
+
+TEST(VdbIo, RvalueOverloadReleasesEvenWhenTheVolumeIsRejected) {
+  ProbeVolume consumed = MakeTestVolume(TestVolumeSpec{});
+  FillTracerExtras(&consumed);
+  consumed.grid.spacing.x = 0;
+  TempDir dir;
+  const absl::Status status =
+      WriteProbeVolume(dir.File("bad.vdb"), std::move(consumed), MakeTestMetadata());
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << status;
+  EXPECT_TRUE(consumed.radiance.empty());
+  EXPECT_TRUE(consumed.radianceStdError.empty());
+  EXPECT_TRUE(consumed.autoWindowT.empty());
+}
+
+// radianceStdError and autoWindowT are not part of the file: a read gives them empty.
+TEST(VdbIo, TracerExtrasAreNotWritten) {
+  ProbeVolume volume = MakeTestVolume(TestVolumeSpec{});
+  FillTracerExtras(&volume);
+  TempDir dir;
+  const std::string path = dir.File("extras.vdb");
+  PB_ASSERT_OK(WriteProbeVolume(path, volume, MakeTestMetadata()));
+  EXPECT_FALSE(volume.radianceStdError.empty());  // the const overload keeps them
+  const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_TRUE(read->volume.radianceStdError.empty());
+  EXPECT_TRUE(read->volume.autoWindowT.empty());
   ExpectSameVolume(volume, read->volume);
 }
 

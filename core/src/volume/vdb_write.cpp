@@ -257,6 +257,10 @@ absl::Status WriteProbeVolume(const std::string& path, const ProbeVolume& volume
 
 absl::Status WriteProbeVolume(const std::string& path, ProbeVolume&& volume,
                               const VolumeMetadata& meta) {
+  // Not written to the file: freed before the first grid is built, so the memory they hold (as
+  // much as the radiance planes for radianceStdError) is not held while writing.
+  std::vector<std::vector<float>>().swap(volume.radianceStdError);
+  std::vector<float>().swap(volume.autoWindowT);
   absl::Status status = WriteImpl(path, volume, meta, &volume);
   // Whatever happened, the planes are the caller's no more.
   for (auto* planes : {&volume.radiance, &volume.irradiance}) {

@@ -40,6 +40,9 @@
 //     grid_counts: vec3i (probes per axis)   grid_min: vec3d   grid_spacing: vec3d
 //     grid_placement: string ("ALL", "OUTSIDE_GEOMETRY" or "NEAR_SURFACES")
 //     grid_surface_distance: double
+// - Not written: ProbeVolume::radianceStdError and ProbeVolume::autoWindowT (the tracer's optional
+//   per-coefficient standard errors and per-probe AUTO window t; format 1 has no grids for them,
+//   and sh_window records the window). ReadProbeVolume gives them empty.
 // - Atomic: written to a hidden temporary file in the destination's directory, flushed and
 //   fsynced, renamed over `path`, then the directory is fsynced. A failed write leaves `path` as it
 //   was (absent or the previous file) and no temporary file.
@@ -83,9 +86,11 @@ std::string IrradianceGridName(int coefficient);
 absl::Status WriteProbeVolume(const std::string& path, const ProbeVolume& volume,
                               const VolumeMetadata& meta);
 // As above, and releases each coefficient plane of `volume` (radiance, irradiance, validity,
-// stdError, sampleCount) as soon as its grid is built, so memory falls while writing. On return,
-// successful or not, those vectors are empty (radiance and irradiance hold no planes); grid,
-// shOrder, active, window and stats are kept.
+// stdError, sampleCount) as soon as its grid is built, so memory falls while writing;
+// radianceStdError and autoWindowT, which are not written, are released before anything else.
+// On return, successful or not, those vectors are empty (radiance, irradiance and
+// radianceStdError hold no planes) and their memory freed; grid, shOrder, active, window and
+// stats are kept.
 absl::Status WriteProbeVolume(const std::string& path, ProbeVolume&& volume,
                               const VolumeMetadata& meta);
 
