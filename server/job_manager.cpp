@@ -158,9 +158,11 @@ void JobManager::Shutdown() {
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   Logger("jobs")->info("job workers stopped in {:.3f} s", seconds);
   std::lock_guard lock(mutex_);
-  for (auto& [name, subscriber] : subscribers_)
-    subscriber->OnJobGone(
-        absl::UnavailableError("the server is shutting down; watch the job again once it is back"));
+  for (auto& [name, weak] : subscribers_) {
+    if (std::shared_ptr<JobSubscriber> subscriber = weak.lock())
+      subscriber->OnJobGone(absl::UnavailableError(
+          "the server is shutting down; watch the job again once it is back"));
+  }
   subscribers_.clear();
 }
 
@@ -408,7 +410,7 @@ absl::Status JobManager::DeleteJob(const std::string& name) {
 }
 
 absl::Status JobManager::Subscribe(const std::string& name,
-                                   std::shared_ptr<JobSubscriber> subscriber) {
+                                   const std::shared_ptr<JobSubscriber>& subscriber) {
   PB_RETURN_IF_ERROR(CheckName(name).status());
   std::lock_guard lock(mutex_);
   PB_ASSIGN_OR_RETURN(std::optional<v1::BakeJob> job, LoadLocked(name, false));
@@ -416,18 +418,44 @@ absl::Status JobManager::Subscribe(const std::string& name,
   if (!IsFinal(job->state()) && stopping_)
     return absl::UnavailableError("the server is shutting down; watch again once it is back");
   subscriber->OnJobUpdate(*job);
-  if (!IsFinal(job->state())) subscribers_.emplace(name, std::move(subscriber));
+  if (IsFinal(job->state())) return absl::OkStatus();
+  // Entries of this job's freed streams go now, so they never outnumber its live watchers.
+  auto [begin, end] = subscribers_.equal_range(name);
+  for (auto it = begin; it != end;) it = it->second.expired() ? subscribers_.erase(it) : ++it;
+  subscribers_.emplace(name, subscriber);
   return absl::OkStatus();
+}
+
+int JobManager::WatcherCount(const std::string& name) {
+  std::lock_guard lock(mutex_);
+  auto [begin, end] = subscribers_.equal_range(name);
+  return int(std::count_if(begin, end, [](const auto& entry) { return !entry.second.expired(); }));
+}
+
+int JobManager::PruneWatchers() {
+  std::lock_guard lock(mutex_);
+  int pruned = 0;
+  for (auto it = subscribers_.begin(); it != subscribers_.end();) {
+    if (it->second.expired()) {
+      it = subscribers_.erase(it);
+      ++pruned;
+    } else {
+      ++it;
+    }
+  }
+  return pruned;
 }
 
 void JobManager::NotifyLocked(const v1::BakeJob& record) {
   auto [begin, end] = subscribers_.equal_range(record.name());
   for (auto it = begin; it != end;) {
-    if (it->second->Detached()) {
+    // Held for the call: a reaction run inline may free the stream's owner meanwhile.
+    std::shared_ptr<JobSubscriber> subscriber = it->second.lock();
+    if (!subscriber || subscriber->Detached()) {
       it = subscribers_.erase(it);
       continue;
     }
-    it->second->OnJobUpdate(record);
+    subscriber->OnJobUpdate(record);
     ++it;
   }
   if (IsFinal(record.state())) subscribers_.erase(record.name());
@@ -435,7 +463,10 @@ void JobManager::NotifyLocked(const v1::BakeJob& record) {
 
 void JobManager::EndSubscribersLocked(const std::string& name, const absl::Status& status) {
   auto [begin, end] = subscribers_.equal_range(name);
-  for (auto it = begin; it != end; ++it) it->second->OnJobGone(status);
+  for (auto it = begin; it != end; ++it) {
+    if (std::shared_ptr<JobSubscriber> subscriber = it->second.lock())
+      subscriber->OnJobGone(status);
+  }
   subscribers_.erase(begin, end);
 }
 

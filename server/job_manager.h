@@ -59,6 +59,11 @@ struct JobManagerConfig {
 // A WatchBakeJob stream. Called with the manager's lock held, from any thread: implementations
 // must not block and must not call back into the manager (not even from gRPC reactions that run
 // inline in a call made here).
+//
+// The manager holds subscribers weakly: the stream's owner (the gRPC reactor) keeps it alive, and
+// when the call ends (client gone, OnDone) the stream is freed at once, whether or not the job
+// changes again. The manager's entry for it is then an expired weak pointer, dropped by the next
+// Subscribe or update of that job, or by PruneWatchers().
 class JobSubscriber {
  public:
   virtual ~JobSubscriber() = default;
@@ -91,9 +96,14 @@ class JobManager {
   absl::Status DeleteJob(const std::string& name);
 
   // Hands `subscriber` the job as it is now (OnJobUpdate, called before this returns) and, when
-  // that state is not final, registers it for every later state. Subscribers whose stream ended
-  // (JobSubscriber::Detached) are dropped at the next update.
-  absl::Status Subscribe(const std::string& name, std::shared_ptr<JobSubscriber> subscriber);
+  // that state is not final, registers it (weakly: the caller owns it) for every later state.
+  // Subscribers whose stream ended (JobSubscriber::Detached, or freed by their owner) are dropped
+  // at the next update.
+  absl::Status Subscribe(const std::string& name, const std::shared_ptr<JobSubscriber>& subscriber);
+  // Watch streams of job `name` still registered and alive (not freed by their owner).
+  int WatcherCount(const std::string& name);
+  // Forgets the entries of every freed watch stream; returns how many.
+  int PruneWatchers();
 
   const JobManagerConfig& config() const { return config_; }
 
@@ -141,7 +151,7 @@ class JobManager {
   std::condition_variable jobsIdle_;  // running_ became empty
   std::vector<std::string> queue_;    // names of QUEUED jobs, creation order
   std::map<std::string, std::shared_ptr<RunningJob>> running_;
-  std::multimap<std::string, std::shared_ptr<JobSubscriber>> subscribers_;
+  std::multimap<std::string, std::weak_ptr<JobSubscriber>> subscribers_;
   bool stopping_ = false;
   std::atomic<bool> draining_{false};
 

@@ -55,6 +55,8 @@ class ProbebakeServer {
   ~ProbebakeServer();  // Shutdown()
 
   int port() const { return port_; }
+  // The job manager (for tests and diagnostics).
+  JobManager& jobs() { return *jobs_; }
   // Graceful stop: health NOT_SERVING, new jobs UNAVAILABLE, running jobs cancelled and requeued
   // with their checkpoints, watchers told UNAVAILABLE, in-flight calls given a moment, the job
   // store closed. Idempotent.

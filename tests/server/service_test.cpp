@@ -12,6 +12,7 @@
 #include <grpcpp/generic/generic_stub.h>
 
 #include "probebake/job/digest.h"
+#include "server/job_manager.h"
 #include "test_server.h"
 
 namespace probebake::testing {
@@ -604,6 +605,43 @@ TEST(Service, WatchersOfADeletedJobGetNotFound) {
   v1::BakeJob cancelled;
   auto c2 = s.Context();
   ASSERT_TRUE(s.Jobs()->CancelBakeJob(c2.get(), cancel, &cancelled).ok());
+}
+
+TEST(Service, AWatcherThatGoesAwayFromAQueuedJobIsReleasedAtOnce) {
+  TestServerOptions options;
+  options.probeDelay = std::chrono::milliseconds(20);
+  TestServer s(options);
+  v1::BakeJob running = s.Create(SmallJob(200, 1));
+  v1::BakeJob queued = s.Create(SmallJob(10, 2));
+  {
+    auto context = s.Context();
+    v1::WatchBakeJobRequest watch;
+    watch.set_name(queued.name());
+    auto stub = s.Jobs();
+    auto reader = stub->WatchBakeJob(context.get(), watch);
+    v1::BakeJob first;
+    ASSERT_TRUE(reader->Read(&first));
+    EXPECT_EQ(first.state(), v1::BakeJob::QUEUED);
+    EXPECT_EQ(s.server().jobs().WatcherCount(queued.name()), 1);
+    context->TryCancel();  // the client goes away; the queued job does not change meanwhile
+    EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
+  }
+  // Released once gRPC reports the cancellation (OnCancel, OnDone): poll for up to 2 s.
+  int count = -1;
+  for (int i = 0; i < 200 && count != 0; ++i) {
+    count = s.server().jobs().WatcherCount(queued.name());
+    if (count != 0) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_EQ(count, 0) << "the watch stream of a client that left is still held";
+  EXPECT_EQ(s.Get(queued.name()).state(), v1::BakeJob::QUEUED);  // it never changed
+  EXPECT_EQ(s.server().jobs().PruneWatchers(), 1);               // the expired entry, dropped
+  v1::CancelBakeJobRequest cancel;
+  cancel.set_name(running.name());
+  v1::BakeJob cancelled;
+  auto c = s.Context();
+  ASSERT_TRUE(s.Jobs()->CancelBakeJob(c.get(), cancel, &cancelled).ok());
+  // A new watcher of the queued job still sees it through.
+  EXPECT_EQ(s.WaitFinal(queued.name()).state(), v1::BakeJob::SUCCEEDED);
 }
 
 TEST(Service, RunsUpToMaxConcurrentJobsAtOnce) {
