@@ -154,4 +154,17 @@ double EnvironmentLight::Pdf(const Vec3d& wi, const Vec3d* n) const {
   return distribution_->Pmf(iy, ix) / cellSolidAngle_[k];
 }
 
+Vec3d EnvironmentLight::RadianceAndPdf(const Vec3d& wi, const Vec3d* n, double* pdf) const {
+  *pdf = 0;
+  if (black_) return {};
+  if (kind_ == Environment::Kind::kUniform) {
+    *pdf = Pdf(wi, n);
+    return uniform_;
+  }
+  const int k = CellIndex(mapFromWorld_ * wi);
+  const float* rgb = &map_->rgb[3 * size_t(k)];
+  *pdf = distribution_->Pmf(k / map_->width, k % map_->width) / cellSolidAngle_[k];
+  return Vec3d(rgb[0], rgb[1], rgb[2]) * map_->scale;
+}
+
 }  // namespace probebake

@@ -33,6 +33,8 @@ class EnvironmentLight {
   // radiance from wi; pdf per steradian (0 when nothing can be sampled).
   Vec3d Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double* pdf) const;
   double Pdf(const Vec3d& wi, const Vec3d* n) const;
+  // Radiance from wi and the pdf Sample would have had for it, with one pixel lookup.
+  Vec3d RadianceAndPdf(const Vec3d& wi, const Vec3d* n, double* pdf) const;
   // Mean luminance over the sphere times pi: the irradiance a surface would get from an
   // unoccluded hemisphere of average sky (the light's selection importance).
   double Importance() const { return importance_; }

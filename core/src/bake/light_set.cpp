@@ -145,13 +145,22 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer)
 }
 
 namespace {
-// Below ~1e-6 sr the spherical rectangle's solid angle loses precision (spherical_rectangle.h);
-// area sampling is as good there anyway (the light is far and small).
+// Below ~1e-6 sr the spherical rectangle's solid angle loses precision (spherical_rectangle.h).
 constexpr double kMaxSolidAnglePdf = 1e6;
+// Solid-angle sampling pays where a rectangle looks large (area sampling's pdf d^2 / (A cos)
+// varies strongly across it); where it spans less than ~8 degrees (area / d^2 < 0.02) area
+// sampling's radiance / pdf is nearly constant already, at a fraction of the cost.
+constexpr double kMinSolidAngleRatio = 0.02;
 }  // namespace
 
+bool LightSet::UseSolidAngleSampling(const LightData& l, const Vec3d& p) const {
+  if (!l.rectangular) return false;
+  const Vec3d centre = l.position + (l.edge1 + l.edge2) * 0.5;
+  return l.area >= kMinSolidAngleRatio * LengthSquared(centre - p);
+}
+
 double LightSet::SolidAnglePdf(const LightData& l, const Vec3d& p) const {
-  if (!l.rectangular) return 0;
+  if (!UseSolidAngleSampling(l, p)) return 0;
   const double pdf = SphericalRectanglePdf(p, l.position, l.edge1, l.edge2);
   return pdf > 0 && pdf <= kMaxSolidAnglePdf ? pdf : 0;
 }
@@ -310,7 +319,7 @@ bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, con
     }
     case Kind::kRect:
     case Kind::kDisk: {
-      if (l.kind == Kind::kRect && l.rectangular) {
+      if (l.kind == Kind::kRect && UseSolidAngleSampling(l, p)) {
         // Solid-angle sampling, unless the rectangle is too small a target for it (then area
         // sampling below, with the same u: the choice depends on p alone, as in EvalSurfaceHit).
         const SphericalRectangleSample r =

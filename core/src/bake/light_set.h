@@ -124,6 +124,8 @@ class LightSet {
   double SpotFalloff(const LightData& l, const Vec3d& wFromLight) const;
   bool FinishAreaSample(const LightData& l, const Vec3d& p, const Vec3d& q, double solidAnglePdf,
                         LightSample* s) const;
+  // Whether a rect light is sampled by solid angle from p (else by area).
+  bool UseSolidAngleSampling(const LightData& l, const Vec3d& p) const;
   // The solid-angle pdf of a rectangular light seen from p, or 0 when it is sampled by area.
   double SolidAnglePdf(const LightData& l, const Vec3d& p) const;
 
@@ -152,9 +154,10 @@ void LightSet::ForEachEscaped(const Vec3d* n, std::span<const double> importance
       hit.pdf =
           total > 0 ? importance[index] / total / (2 * 3.14159265358979323846 * l.oneMinusCos) : 0;
     } else {
-      hit.radiance = environment_->Radiance(wi);
+      double pdf;
+      hit.radiance = environment_->RadianceAndPdf(wi, n, &pdf);
       if (MaxComponent(hit.radiance) <= 0) continue;
-      hit.pdf = total > 0 ? importance[index] / total * environment_->Pdf(wi, n) : 0;
+      hit.pdf = total > 0 ? importance[index] / total * pdf : 0;
     }
     visit(hit);
   }
