@@ -16,4 +16,9 @@ scripts/install-deps.sh
 cmake -S . -B "$BUILD_DIR" -G Ninja -DCMAKE_BUILD_TYPE=Release
 cmake --build "$BUILD_DIR" --target probebake-bench probebake_bake_bench -j"$(nproc)"
 echo "bench: load average before the run: $(cut -d' ' -f1-3 /proc/loadavg) (other work skews wall times)"
+# Recorded in the report: the commit measured, "+local-changes" when the tree differs from it.
+if commit=$(git rev-parse --short HEAD 2>/dev/null); then
+  git diff --quiet HEAD 2>/dev/null || commit="$commit+local-changes"
+  export PROBEBAKE_BENCH_COMMIT="$commit"
+fi
 exec "$BUILD_DIR/bin/probebake-bench" --source "$PWD" "$@"
