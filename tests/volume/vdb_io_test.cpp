@@ -6,6 +6,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <ostream>
 #include <thread>
 
@@ -179,14 +180,50 @@ TEST(VdbIo, RawMetadataHoldsEveryKeyAsText) {
     ASSERT_NE(it, read->rawMetadata.end()) << key;
     EXPECT_EQ(it->second, value) << key;
   }
-  const std::string stats = read->rawMetadata.at("stats");
-  EXPECT_NE(stats.find("\"wallSeconds\":12.345678901234567"), std::string::npos) << stats;
-  EXPECT_NE(stats.find("\"rays\":1099511627776"), std::string::npos) << stats;
-  EXPECT_NE(stats.find("\"probes\":" + std::to_string(volume.stats.probes)), std::string::npos)
-      << stats;
-  EXPECT_NE(stats.find("\"invalidProbes\":" + std::to_string(volume.stats.invalidProbes)),
-            std::string::npos)
-      << stats;
+  // Compact, keys in ascending order, integers as integer literals, wallSeconds with the 17
+  // significant digits it needs to read back (vdb_io.h).
+  const std::string expectedStats =
+      "{\"invalidProbes\":" + std::to_string(volume.stats.invalidProbes) +
+      ",\"probes\":" + std::to_string(volume.stats.probes) + ",\"rays\":1099511627776" +
+      ",\"samples\":" + std::to_string(volume.stats.samples) +
+      ",\"threads\":2,\"wallSeconds\":12.345678901234567}";
+  EXPECT_EQ(read->rawMetadata.at("stats"), expectedStats);
+}
+
+// Counts up to 2^53 - 1 and wallSeconds read back exactly, whatever form protobuf prints them in
+// (1e15 prints as "1e+15").
+TEST(VdbIo, StatsRoundTripUpTo2To53) {
+  const int64_t kLargest = (int64_t(1) << 53) - 1;
+  struct Case {
+    double wallSeconds;
+    int threads;
+    int64_t probes, samples, rays, invalidProbes;
+  };
+  const Case cases[] = {
+      {0.0, 0, 0, 0, 0, 0},
+      {0.1, 1, 1, 1, 1, 0},
+      {1.0 / 3.0, 64, 123456789, 1000000000000000, kLargest, 7},
+      {1e-300, 2147483647, kLargest, 999999999999999, 1000000000000001, -1},
+      {86400.5, 2, 1, -kLargest, int64_t(1) << 52, kLargest},
+  };
+  TempDir dir;
+  int index = 0;
+  for (const Case& c : cases) {
+    SCOPED_TRACE(index);
+    ProbeVolume volume = MakeTestVolume(TestVolumeSpec{});
+    volume.stats = {c.wallSeconds, c.threads, c.probes, c.samples, c.rays, c.invalidProbes};
+    const std::string path = dir.File(std::to_string(index++) + ".vdb");
+    PB_ASSERT_OK(WriteProbeVolume(path, volume, MakeTestMetadata()));
+    const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
+    ASSERT_TRUE(read.ok()) << read.status();
+    const BakeStats& got = read->volume.stats;
+    EXPECT_EQ(got.wallSeconds, c.wallSeconds);
+    EXPECT_EQ(got.threads, c.threads);
+    EXPECT_EQ(got.probes, c.probes);
+    EXPECT_EQ(got.samples, c.samples);
+    EXPECT_EQ(got.rays, c.rays);
+    EXPECT_EQ(got.invalidProbes, c.invalidProbes);
+  }
 }
 
 // The tracer's optional per-coefficient standard errors and AUTO window t, filled as it does.
@@ -299,6 +336,11 @@ TEST(VdbIo, InconsistentVolumeIsRejectedAndNothingWritten) {
       {"volume.shOrder", [](ProbeVolume* v) { v->shOrder = 10; }},
       {"volume.grid.spacing[1]", [](ProbeVolume* v) { v->grid.spacing.y = 0; }},
       {"volume.grid.counts[2]", [](ProbeVolume* v) { v->grid.counts[2] = 0; }},
+      // The stats JSON holds doubles: a NaN has no JSON form, 2^53 would not read back exactly.
+      {"volume.stats.wallSeconds",
+       [](ProbeVolume* v) { v->stats.wallSeconds = std::numeric_limits<double>::quiet_NaN(); }},
+      {"volume.stats.rays", [](ProbeVolume* v) { v->stats.rays = int64_t(1) << 53; }},
+      {"volume.stats.samples", [](ProbeVolume* v) { v->stats.samples = INT64_MIN; }},
   };
   for (const Case& c : cases) {
     ProbeVolume volume = MakeTestVolume(TestVolumeSpec{});

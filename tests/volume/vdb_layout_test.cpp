@@ -10,6 +10,7 @@
 #include <iterator>
 #include <limits>
 #include <set>
+#include <utility>
 
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
@@ -344,6 +345,31 @@ TEST_F(VdbLayout, ReaderRejectsBrokenFilesNamingTheGridOrKey) {
     m = meta->copyMeta();
     m->removeMeta("stats");
     expectError(WriteAndRead(good, *m), "stats", "missing");
+    // stats that are not the SPEC 5 object.
+    const std::pair<const char*, const char*> badStats[] = {
+        {"[1,2]", "stats: not a JSON object"},
+        {"{\"wallSeconds\":1", "stats: not a JSON object"},
+        {"{\"threads\":1,\"probes\":1,\"samples\":1,\"rays\":1,\"invalidProbes\":0}",
+         "stats.wallSeconds: missing"},
+        {"{\"wallSeconds\":\"1\",\"threads\":1,\"probes\":1,\"samples\":1,\"rays\":1,"
+         "\"invalidProbes\":0}",
+         "stats.wallSeconds: not a number"},
+        {"{\"wallSeconds\":1,\"threads\":1,\"probes\":1,\"samples\":1,\"rays\":1.5,"
+         "\"invalidProbes\":0}",
+         "stats.rays: not an integer"},
+        {"{\"wallSeconds\":1,\"threads\":1,\"probes\":1,\"samples\":9007199254740992,"
+         "\"rays\":1,\"invalidProbes\":0}",
+         "stats.samples: not an integer"},
+        {"{\"wallSeconds\":1,\"threads\":4294967296,\"probes\":1,\"samples\":1,\"rays\":1,"
+         "\"invalidProbes\":0}",
+         "stats.threads: out of range"},
+    };
+    for (const auto& [stats, reason] : badStats) {
+      m = meta->copyMeta();
+      m->removeMeta("stats");
+      m->insertMeta("stats", vdb::StringMetadata(stats));
+      expectError(WriteAndRead(good, *m), "stats", reason);
+    }
     m = meta->copyMeta();
     m->removeMeta("grid_min");
     m->insertMeta("grid_min", vdb::Vec3DMetadata(vdb::Vec3d(0, 0, 0)));

@@ -13,6 +13,8 @@
 #include <cstdio>
 #include <fstream>
 #include <limits>
+#include <utility>
+#include <vector>
 
 #include "probebake/volume/vdb_io.h"
 #include "volume/test_volumes.h"
@@ -50,6 +52,27 @@ Expected Stats(const ProbeVolume& v, const std::vector<float>& values, int chann
   }
   for (int ch = 0; ch < channels; ++ch) e.mean[ch] = sum[ch] / double(n);
   return e;
+}
+
+constexpr const char* kPython = "/usr/bin/python3";
+
+// Runs `script` with Debian's Python and `args` (each shell-quoted with '...'); returns its exit
+// status and output (stdout and stderr).
+std::pair<int, std::string> RunPython(const TempDir& dir, const std::string& script,
+                                      const std::vector<std::string>& args) {
+  const std::string scriptPath = dir.File("check.py");
+  std::ofstream(scriptPath) << script;
+  std::string command = std::string(kPython) + " '" + scriptPath + "'";
+  for (const std::string& arg : args) command += " '" + arg + "'";
+  command += " 2>&1";
+  FILE* pipe = ::popen(command.c_str(), "r");
+  if (pipe == nullptr) return {-1, "popen failed"};
+  std::string output;
+  char buffer[1024];
+  size_t got;
+  while ((got = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) output.append(buffer, got);
+  const int status = ::pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
 }
 
 class Inspect : public ::testing::Test {
@@ -196,7 +219,6 @@ TEST_F(Inspect, TextNamesProbesAndEveryGrid) {
 }
 
 TEST_F(Inspect, JsonParsesWithPythonAndHoldsTheFigures) {
-  constexpr const char* kPython = "/usr/bin/python3";
   if (::access(kPython, X_OK) != 0) GTEST_SKIP() << kPython << " is missing";
   const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path_);
   ASSERT_TRUE(report.ok()) << report.status();
@@ -216,19 +238,68 @@ TEST_F(Inspect, JsonParsesWithPythonAndHoldsTheFigures) {
       "g=[g for g in d['grids'] if g['name']=='validity'][0]\n"
       "assert len(g['mean'])==1 and g['activeVoxels']==int(sys.argv[2]), g\n"
       "print('ok')\n";
-  const std::string scriptPath = dir_.File("check.py");
-  std::ofstream(scriptPath) << check;
-  const std::string command = std::string(kPython) + " '" + scriptPath + "' '" + jsonPath + "' " +
-                              std::to_string(active_) + " " + std::to_string(invalid_) + " 2>&1";
-  FILE* pipe = ::popen(command.c_str(), "r");
-  ASSERT_NE(pipe, nullptr);
-  std::string output;
-  char buffer[1024];
-  size_t got;
-  while ((got = std::fread(buffer, 1, sizeof buffer, pipe)) > 0) output.append(buffer, got);
-  const int status = ::pclose(pipe);
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << output;
+  const auto [status, output] =
+      RunPython(dir_, check, {jsonPath, std::to_string(active_), std::to_string(invalid_)});
+  EXPECT_EQ(status, 0) << output;
   EXPECT_EQ(output, "ok\n");
+}
+
+// The report is JSON even when the file's path and metadata strings are not UTF-8 (such bytes
+// become U+FFFD), string metadata holding JSON is embedded as JSON, and int64 metadata beyond 2^53
+// (not exact as a JSON number) is a string of its exact digits.
+TEST_F(Inspect, JsonIsValidForAnyBytesAndExactForLargeIntegers) {
+  if (::access(kPython, X_OK) != 0) GTEST_SKIP() << kPython << " is missing";
+  VolumeMetadata meta = MakeTestMetadata();
+  meta.sceneDigest = "digest \xff\xfe end";
+  meta.settingsJson = "{\"note\":\"caf\xe9\",\"list\":[1,2.5,null,true],\"n\":{}}";
+  meta.seed = 0x9E3779B97F4A7C15ull;                  // int64 -7046029254386353131, beyond 2^53
+  const std::string path = dir_.File("caf\xe9.vdb");  // Latin-1, not UTF-8
+  PB_ASSERT_OK(WriteProbeVolume(path, volume_, meta));
+  const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path);
+  ASSERT_TRUE(report.ok()) << report.status();
+  const std::string jsonPath = dir_.File("report.json");
+  std::ofstream(jsonPath) << VolumeReportJson(*report);
+  const std::string check =
+      "import json,sys\n"
+      "d=json.load(open(sys.argv[1], encoding='utf-8', errors='strict'))\n"
+      "assert d['path'].endswith('/caf\\ufffd.vdb'), d['path']\n"
+      "m=d['metadata']\n"
+      "assert m['scene_digest']=='digest \\ufffd\\ufffd end', m['scene_digest']\n"
+      "assert m['settings']=={'note':'caf\\ufffd','list':[1,2.5,None,True],'n':{}}, "
+      "m['settings']\n"
+      "assert m['seed']=='-7046029254386353131', m['seed']\n"
+      "assert m['samples_per_probe']==8589934592, m['samples_per_probe']\n"
+      "assert m['grid_spacing']==[0.5,1.25,2.0], m['grid_spacing']\n"
+      "assert m['grid_surface_distance']==0.375, m['grid_surface_distance']\n"
+      "print('ok')\n";
+  const auto [status, output] = RunPython(dir_, check, {jsonPath});
+  EXPECT_EQ(status, 0) << output;
+  EXPECT_EQ(output, "ok\n");
+}
+
+// Stable text: the same report always prints the same JSON, keys in ascending order.
+TEST_F(Inspect, JsonIsStableWithSortedKeys) {
+  const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path_);
+  ASSERT_TRUE(report.ok()) << report.status();
+  const std::string json = VolumeReportJson(*report);
+  for (int i = 0; i < 5; ++i) EXPECT_EQ(VolumeReportJson(*report), json);
+  // Top-level keys in ascending order: fileBytes, grids, invalidProbes, metadata, path, probes.
+  const std::string head = "{\"fileBytes\":" + std::to_string(report->fileBytes) + ",\"grids\":[";
+  const std::string middle =
+      "],\"invalidProbes\":" + std::to_string(report->invalidProbes) + ",\"metadata\":{";
+  const std::string tail =
+      ",\"path\":\"" + path_ + "\",\"probes\":" + std::to_string(report->probes) + "}";
+  EXPECT_EQ(json.rfind(head, 0), 0u) << json;
+  EXPECT_NE(json.find(middle), std::string::npos) << json;
+  ASSERT_GE(json.size(), tail.size());
+  EXPECT_EQ(json.substr(json.size() - tail.size()), tail) << json;
+  // And inside: a grid's keys, the metadata's keys.
+  EXPECT_NE(json.find("{\"activeVoxels\":" + std::to_string(active_) + ",\"bboxMax\":["),
+            std::string::npos)
+      << json;
+  EXPECT_NE(json.find("\"metadata\":{\"color_space\":\"linear-rec709\",\"generator\":"),
+            std::string::npos)
+      << json;
 }
 
 TEST_F(Inspect, VolumeWithoutBakedProbes) {

@@ -2,10 +2,11 @@
 
 #include <cmath>
 #include <cstdint>
+#include <utility>
 
-#include "json_lite.h"
 #include "probebake/base/check.h"
 #include "probebake/volume/vdb_io.h"
+#include "proto_json.h"
 
 namespace probebake::volume_internal {
 
@@ -31,26 +32,41 @@ bool ParsePlacement(const std::string& name, Placement* placement) {
   return false;
 }
 
-std::string StatsToJson(const BakeStats& stats) {
-  return "{\"wallSeconds\":" + JsonNumber(stats.wallSeconds) +
-         ",\"threads\":" + std::to_string(stats.threads) +
-         ",\"probes\":" + std::to_string(stats.probes) +
-         ",\"samples\":" + std::to_string(stats.samples) +
-         ",\"rays\":" + std::to_string(stats.rays) +
-         ",\"invalidProbes\":" + std::to_string(stats.invalidProbes) + "}";
+absl::StatusOr<std::string> StatsToJson(const BakeStats& stats) {
+  if (!std::isfinite(stats.wallSeconds)) {
+    return FieldError("volume.stats.wallSeconds", "must be finite");
+  }
+  google::protobuf::Struct object;
+  auto& fields = *object.mutable_fields();
+  fields["wallSeconds"].set_number_value(stats.wallSeconds);
+  for (const auto& [name, count] : {std::pair<const char*, int64_t>{"threads", stats.threads},
+                                    {"probes", stats.probes},
+                                    {"samples", stats.samples},
+                                    {"rays", stats.rays},
+                                    {"invalidProbes", stats.invalidProbes}}) {
+    // JSON numbers here are doubles: beyond 2^53 a count would not read back exactly.
+    if (!(std::abs(double(count)) < kMaxExactJsonInteger)) {
+      return FieldError(std::string("volume.stats.") + name,
+                        std::to_string(count) + " is not below 2^53 in magnitude");
+    }
+    fields[name].set_number_value(double(count));
+  }
+  return ToJson(object);
 }
 
 absl::Status StatsFromJson(const std::string& json, BakeStats* stats) {
-  const std::optional<JsonValue> root = ParseJson(json);
-  if (!root || root->kind != JsonValue::Kind::kObject) {
+  const std::optional<google::protobuf::Value> root = ParseJson(json);
+  if (!root || root->kind_case() != google::protobuf::Value::kStructValue) {
     return FieldError("stats", "not a JSON object");
   }
+  const auto& fields = root->struct_value().fields();
   BakeStats result;
-  const JsonValue* wall = root->Find("wallSeconds");
-  if (wall == nullptr) return FieldError("stats.wallSeconds", "missing");
-  const std::optional<double> wallSeconds = JsonDouble(*wall);
-  if (!wallSeconds) return FieldError("stats.wallSeconds", "not a number");
-  result.wallSeconds = *wallSeconds;
+  const auto wall = fields.find("wallSeconds");
+  if (wall == fields.end()) return FieldError("stats.wallSeconds", "missing");
+  if (wall->second.kind_case() != google::protobuf::Value::kNumberValue) {
+    return FieldError("stats.wallSeconds", "not a number");
+  }
+  result.wallSeconds = wall->second.number_value();
   struct IntField {
     const char* name;
     int64_t* value;
@@ -61,10 +77,10 @@ absl::Status StatsFromJson(const std::string& json, BakeStats* stats) {
         IntField{"samples", &result.samples}, IntField{"rays", &result.rays},
         IntField{"invalidProbes", &result.invalidProbes}}) {
     const std::string path = std::string("stats.") + field.name;
-    const JsonValue* value = root->Find(field.name);
-    if (value == nullptr) return FieldError(path, "missing");
-    const std::optional<int64_t> integer = JsonInt64(*value);
-    if (!integer) return FieldError(path, "not an integer");
+    const auto it = fields.find(field.name);
+    if (it == fields.end()) return FieldError(path, "missing");
+    const std::optional<int64_t> integer = ExactInteger(it->second);
+    if (!integer) return FieldError(path, "not an integer below 2^53 in magnitude");
     *field.value = *integer;
   }
   if (threads < 0 || threads > INT32_MAX) return FieldError("stats.threads", "out of range");

@@ -44,9 +44,13 @@ const char* PlacementName(Placement placement);
 // Inverse of PlacementName; false for an unknown name.
 bool ParsePlacement(const std::string& name, Placement* placement);
 
-// The stats JSON object of SPEC 5 and back. Doubles and integers round-trip exactly.
-std::string StatsToJson(const BakeStats& stats);
-// INVALID_ARGUMENT "stats: <reason>" when `json` is not such an object.
+// The stats JSON object of SPEC 5 (compact, keys sorted, through protobuf's JSON mapping; see
+// proto_json.h) and back; wallSeconds and the counts round-trip exactly. INVALID_ARGUMENT
+// "volume.stats.<field>: <reason>" when wallSeconds is not finite or a count's magnitude is not
+// below 2^53 (JSON numbers are doubles).
+absl::StatusOr<std::string> StatsToJson(const BakeStats& stats);
+// INVALID_ARGUMENT "stats: <reason>" when `json` is not such an object (every key present,
+// counts integral numbers below 2^53 in magnitude, threads in int range).
 absl::Status StatsFromJson(const std::string& json, BakeStats* stats);
 
 // INVALID_ARGUMENT naming the field when `volume`'s sizes, order or grid are inconsistent.

@@ -8,15 +8,18 @@
 #include <limits>
 #include <map>
 #include <new>
+#include <optional>
 #include <set>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
 
-#include "json_lite.h"
 #include "probebake/volume/vdb_io.h"
 #include "probebake/volume/volume_inspect.h"
+#include "proto_json.h"
 #include "vdb_format.h"
 
 namespace probebake {
@@ -605,61 +608,96 @@ std::string FormatVolumeReport(const VolumeReport& report) {
 }
 
 std::string VolumeReportJson(const VolumeReport& report) {
-  auto metadataValue = [](const MetadataEntry& m) -> std::string {
-    if (m.type == "bool") return m.value;
-    if (m.type == "int32" || m.type == "int64") return m.value;
+  namespace pb = google::protobuf;
+  auto list = [](auto&& values) {
+    pb::Value value;
+    pb::ListValue* items = value.mutable_list_value();
+    for (pb::Value& v : values) *items->add_values() = std::move(v);
+    return value;
+  };
+  // "(x, y, z)" as three finite numbers, or nullopt.
+  auto vectorValue = [&list](const std::string& text) -> std::optional<pb::Value> {
+    if (text.size() < 2 || text.front() != '(' || text.back() != ')') return std::nullopt;
+    std::vector<pb::Value> components;
+    const char* p = text.data() + 1;
+    const char* end = text.data() + text.size() - 1;
+    while (true) {
+      double x = 0;
+      const auto [next, ec] = std::from_chars(p, end, x);
+      if (ec != std::errc() || !std::isfinite(x)) return std::nullopt;
+      components.push_back(NumberValue(x));
+      if (next == end) break;
+      if (end - next < 2 || next[0] != ',' || next[1] != ' ') return std::nullopt;
+      p = next + 2;
+    }
+    return list(std::move(components));
+  };
+  auto metadataValue = [&vectorValue](const MetadataEntry& m) -> pb::Value {
+    if (m.type == "bool" && (m.value == "true" || m.value == "false")) {
+      pb::Value value;
+      value.set_bool_value(m.value == "true");
+      return value;
+    }
+    if (m.type == "int32" || m.type == "int64") {
+      int64_t n = 0;
+      const auto [end, ec] = std::from_chars(m.value.data(), m.value.data() + m.value.size(), n);
+      if (ec == std::errc() && end == m.value.data() + m.value.size()) return IntegerValue(n);
+    }
     if (m.type == "float" || m.type == "double") {
-      // Non-finite values are not JSON numbers.
-      const std::optional<JsonValue> v = ParseJson(m.value);
-      return v && v->kind == JsonValue::Kind::kNumber ? m.value : JsonQuote(m.value);
-    }
-    if (m.type == "vec3i" || m.type == "vec3s" || m.type == "vec3d") {
-      std::string array = "[" + m.value.substr(1, m.value.size() - 2) + "]";
-      const std::optional<JsonValue> v = ParseJson(array);
-      return v ? array : JsonQuote(m.value);
-    }
-    if (m.type == "string") {
-      const std::optional<JsonValue> v = ParseJson(m.value);
-      if (v && (v->kind == JsonValue::Kind::kObject || v->kind == JsonValue::Kind::kArray)) {
-        return m.value;
+      double x = 0;
+      const auto [end, ec] = std::from_chars(m.value.data(), m.value.data() + m.value.size(), x);
+      // Non-finite values are not JSON numbers: they stay text.
+      if (ec == std::errc() && end == m.value.data() + m.value.size() && std::isfinite(x)) {
+        return NumberValue(x);
       }
     }
-    return JsonQuote(m.value);
-  };
-  auto numbers = [](const double* v, int n) {
-    std::string s = "[";
-    for (int i = 0; i < n; ++i) {
-      if (i) s += ',';
-      s += JsonNumber(v[i]);
+    if (m.type == "vec3i" || m.type == "vec3s" || m.type == "vec3d") {
+      if (std::optional<pb::Value> v = vectorValue(m.value)) return *std::move(v);
     }
-    return s + "]";
+    if (m.type == "string") {
+      std::optional<pb::Value> v = ParseJson(ValidUtf8(m.value));
+      if (v && (v->has_struct_value() || v->has_list_value())) return *std::move(v);
+    }
+    return StringValue(m.value);
   };
-  auto ints = [](const int* v) {
-    return "[" + std::to_string(v[0]) + "," + std::to_string(v[1]) + "," + std::to_string(v[2]) +
-           "]";
+  auto numbers = [&list](const double* v, int n) {
+    std::vector<pb::Value> values;
+    for (int i = 0; i < n; ++i) values.push_back(NumberValue(v[i]));
+    return list(std::move(values));
   };
-  std::string out =
-      "{\"path\":" + JsonQuote(report.path) + ",\"fileBytes\":" + std::to_string(report.fileBytes) +
-      ",\"probes\":" + std::to_string(report.probes) +
-      ",\"invalidProbes\":" + std::to_string(report.invalidProbes) + ",\"metadata\":{";
-  for (size_t i = 0; i < report.metadata.size(); ++i) {
-    const MetadataEntry& m = report.metadata[i];
-    if (i) out += ',';
-    out += JsonQuote(m.name) + ":" + metadataValue(m);
+  auto box = [&list](bool present, const int* v) {
+    pb::Value value;
+    if (!present) {
+      value.set_null_value(pb::NULL_VALUE);
+      return value;
+    }
+    std::vector<pb::Value> values;
+    for (int a = 0; a < 3; ++a) values.push_back(IntegerValue(v[a]));
+    return list(std::move(values));
+  };
+
+  pb::Struct root;
+  auto& fields = *root.mutable_fields();
+  fields["path"] = StringValue(report.path);
+  fields["fileBytes"] = IntegerValue(report.fileBytes);
+  fields["probes"] = IntegerValue(report.probes);
+  fields["invalidProbes"] = IntegerValue(report.invalidProbes);
+  auto& metadata = *fields["metadata"].mutable_struct_value()->mutable_fields();
+  for (const MetadataEntry& m : report.metadata) metadata[m.name] = metadataValue(m);
+  pb::ListValue* grids = fields["grids"].mutable_list_value();
+  for (const GridReport& g : report.grids) {
+    auto& grid = *grids->add_values()->mutable_struct_value()->mutable_fields();
+    grid["name"] = StringValue(g.name);
+    grid["type"] = StringValue(g.type);
+    grid["valueType"] = StringValue(g.valueType);
+    grid["activeVoxels"] = IntegerValue(g.activeVoxels);
+    grid["bboxMin"] = box(g.activeVoxels > 0, g.bboxMin);
+    grid["bboxMax"] = box(g.activeVoxels > 0, g.bboxMax);
+    grid["min"] = numbers(g.min, g.channels);
+    grid["max"] = numbers(g.max, g.channels);
+    grid["mean"] = numbers(g.mean, g.channels);
   }
-  out += "},\"grids\":[";
-  for (size_t i = 0; i < report.grids.size(); ++i) {
-    const GridReport& g = report.grids[i];
-    out += std::string(i ? "," : "") + "{\"name\":" + JsonQuote(g.name) +
-           ",\"type\":" + JsonQuote(g.type) + ",\"valueType\":" + JsonQuote(g.valueType) +
-           ",\"activeVoxels\":" + std::to_string(g.activeVoxels) +
-           ",\"bboxMin\":" + (g.activeVoxels > 0 ? ints(g.bboxMin) : "null") +
-           ",\"bboxMax\":" + (g.activeVoxels > 0 ? ints(g.bboxMax) : "null") +
-           ",\"min\":" + numbers(g.min, g.channels) + ",\"max\":" + numbers(g.max, g.channels) +
-           ",\"mean\":" + numbers(g.mean, g.channels) + "}";
-  }
-  out += "]}";
-  return out;
+  return ToJson(root);
 }
 
 }  // namespace probebake

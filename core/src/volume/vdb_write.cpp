@@ -138,7 +138,8 @@ vdb::FloatGrid::Ptr BuildScalarGrid(const ProbeVolume& volume, const std::string
                                    [&values](size_t probe) { return values[probe]; });
 }
 
-vdb::MetaMap FileMetadata(const ProbeVolume& volume, const VolumeMetadata& meta) {
+vdb::MetaMap FileMetadata(const ProbeVolume& volume, const VolumeMetadata& meta,
+                          const std::string& statsJson) {
   const ProbeGrid& g = volume.grid;
   vdb::MetaMap m;
   m.insertMeta(kKeyFormat, vdb::Int32Metadata(kProbeVolumeFormat));
@@ -155,7 +156,7 @@ vdb::MetaMap FileMetadata(const ProbeVolume& volume, const VolumeMetadata& meta)
   m.insertMeta(kKeySceneDigest, vdb::StringMetadata(meta.sceneDigest));
   m.insertMeta(kKeySettings, vdb::StringMetadata(meta.settingsJson));
   m.insertMeta(kKeyGenerator, vdb::StringMetadata(std::string(kGeneratorName) + " " + kVersion));
-  m.insertMeta(kKeyStats, vdb::StringMetadata(StatsToJson(volume.stats)));
+  m.insertMeta(kKeyStats, vdb::StringMetadata(statsJson));
   m.insertMeta(kKeyGridCounts,
                vdb::Vec3IMetadata(vdb::Vec3i(g.counts[0], g.counts[1], g.counts[2])));
   m.insertMeta(kKeyGridMin, vdb::Vec3DMetadata(vdb::Vec3d(g.origin.x, g.origin.y, g.origin.z)));
@@ -169,14 +170,15 @@ vdb::MetaMap FileMetadata(const ProbeVolume& volume, const VolumeMetadata& meta)
 // Writes every grid into `os`. When `releasable` is set (it is `volume` itself), each plane is
 // freed as soon as its grid is built.
 absl::Status WriteGrids(std::ostream& os, const std::string& path, const ProbeVolume& volume,
-                        const VolumeMetadata& meta, ProbeVolume* releasable) {
+                        const VolumeMetadata& meta, const std::string& statsJson,
+                        ProbeVolume* releasable) {
   const int coefficients = volume.CoeffCount();
   const bool hasIrradiance = !volume.irradiance.empty();
   const int32_t gridCount = coefficients * (hasIrradiance ? 2 : 1) + 3;
   const vdb::math::Transform::Ptr transform = ProbeTransform(volume.grid);
 
   StreamingArchive archive;
-  archive.Begin(os, FileMetadata(volume, meta), gridCount);
+  archive.Begin(os, FileMetadata(volume, meta, statsJson), gridCount);
   auto release = [](std::vector<float>* plane) { std::vector<float>().swap(*plane); };
   auto check = [&](const std::string& gridName) -> absl::Status {
     if (os) return absl::OkStatus();
@@ -218,6 +220,7 @@ absl::Status WriteGrids(std::ostream& os, const std::string& path, const ProbeVo
 absl::Status WriteImpl(const std::string& path, const ProbeVolume& volume,
                        const VolumeMetadata& meta, ProbeVolume* releasable) {
   PB_RETURN_IF_ERROR(ValidateVolume(volume));
+  PB_ASSIGN_OR_RETURN(const std::string statsJson, StatsToJson(volume.stats));
   InitializeOpenVdbOnce();
   PB_ASSIGN_OR_RETURN(AtomicFile file, AtomicFile::Create(path));
   absl::Status status;
@@ -226,7 +229,7 @@ absl::Status WriteImpl(const std::string& path, const ProbeVolume& volume,
                      std::ios_base::out | std::ios_base::binary | std::ios_base::trunc);
     if (!os) return IoError(errno != 0 ? errno : EIO, path, "cannot open " + file.tempPath());
     errno = 0;
-    status = WriteGrids(os, path, volume, meta, releasable);
+    status = WriteGrids(os, path, volume, meta, statsJson, releasable);
     if (status.ok()) {
       os.close();
       if (!os) status = IoError(errno != 0 ? errno : EIO, path, "flushing the file failed");

@@ -35,7 +35,13 @@
 //     scene_digest: string                 settings: string (JSON, VolumeMetadata::settingsJson)
 //     generator: string ("probebake <kVersion>")
 //     stats: string (JSON object: wallSeconds (number), threads, probes, samples, rays,
-//            invalidProbes (integers))
+//            invalidProbes (integers)), printed by protobuf's JSON mapping from a
+//            google.protobuf.Struct: compact, keys in ascending order, e.g.
+//            {"invalidProbes":3,"probes":51,"rays":1099511627776,"samples":26115,"threads":2,
+//            "wallSeconds":12.345678901234567}. Struct numbers are doubles: counts must be
+//            below 2^53 in magnitude (the writer rejects others; real counts never get near),
+//            and print as integer literals below 10^15, possibly in exponent form ("1e+15",
+//            still exact) from there to 2^53. wallSeconds must be finite.
 //   plus extra keys so a reader can rebuild the ProbeGrid without guessing:
 //     grid_counts: vec3i (probes per axis)   grid_min: vec3d   grid_spacing: vec3d
 //     grid_placement: string ("ALL", "OUTSIDE_GEOMETRY" or "NEAR_SURFACES")
@@ -75,7 +81,8 @@ std::string RadianceGridName(int coefficient);
 std::string IrradianceGridName(int coefficient);
 
 // Writes `volume` to `path` as described above. Errors: INVALID_ARGUMENT when the volume is
-// inconsistent (plane sizes, order > kMaxVolumeShOrder, non-positive spacing), naming the field;
+// inconsistent (plane sizes, order > kMaxVolumeShOrder, non-positive spacing, stats that the
+// stats JSON cannot hold exactly), naming the field;
 // NOT_FOUND / PERMISSION_DENIED / RESOURCE_EXHAUSTED (disk full) / INTERNAL for I/O failures,
 // with `path` in the message. Thread safe for distinct paths.
 //

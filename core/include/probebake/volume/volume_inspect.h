@@ -53,10 +53,16 @@ std::string FormatVolumeReport(const VolumeReport& report);
 
 // One JSON object: {"path", "fileBytes", "probes", "invalidProbes", "metadata": {name: value},
 // "grids": [{"name", "type", "valueType", "activeVoxels", "bboxMin", "bboxMax", "min", "max",
-// "mean"}]} (bboxMin and bboxMax null for a grid without active voxels). Metadata values are JSON
-// numbers for int/float types, booleans for bool, arrays for vectors, strings otherwise; string
-// values that hold valid JSON (settings, stats) are embedded as JSON. Statistics of 1-channel grids
-// are still arrays (of one number).
+// "mean"}]} (bboxMin and bboxMax null for a grid without active voxels). Printed by protobuf's
+// JSON mapping from a google.protobuf.Struct: compact, every object's keys in ascending order,
+// the same report always giving the same text. Metadata values are JSON numbers for int/float
+// types, booleans for bool, arrays for vectors, strings otherwise; string values that hold a JSON
+// object or array (settings, stats) are embedded as JSON (re-printed the same way: keys sorted,
+// numbers as doubles). Numbers are doubles: an integer of magnitude 2^53 or more (an int64 seed)
+// is a string of its exact decimal digits instead, as in protobuf's JSON mapping of int64;
+// non-finite float metadata is a string ("nan", "inf"), non-finite statistics are null.
+// Strings are UTF-8: bytes of the path or metadata that are not well-formed UTF-8 become U+FFFD.
+// Statistics of 1-channel grids are still arrays (of one number).
 std::string VolumeReportJson(const VolumeReport& report);
 
 }  // namespace probebake
