@@ -11,7 +11,9 @@
 namespace probebake::server {
 namespace {
 
-constexpr char kMagic[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '2'};
+constexpr char kMagic[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '3'};
+// The format before BakeWork was added; read with zero work.
+constexpr char kMagic02[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '2'};
 constexpr size_t kHashHexBytes = 64;
 
 class Writer {
@@ -131,12 +133,16 @@ int64_t Checkpoint::DoneCount() const {
 }
 
 absl::Status WriteCheckpoint(const std::filesystem::path& path, const std::string& jobDigest,
-                             const ProbeVolume& volume, const std::vector<uint8_t>& done) {
+                             const ProbeVolume& volume, const std::vector<uint8_t>& done,
+                             const BakeWork& work) {
   Writer w;
   w.bytes().append(kMagic, sizeof(kMagic));
   w.String(jobDigest);
   WriteVolume(volume, &w);
   w.Vector(done);
+  w.Pod(work.wallSeconds);
+  w.Pod(work.samples);
+  w.Pod(work.rays);
   std::string hash = Sha256Hex(w.bytes());
   w.bytes().append(hash);
   return WriteFileAtomic(path, w.bytes());
@@ -148,16 +154,20 @@ absl::StatusOr<Checkpoint> ReadCheckpoint(const std::filesystem::path& path,
   auto corrupt = [&](std::string_view why) {
     return absl::DataLossError(absl::StrCat("checkpoint ", path.string(), ": ", std::string(why)));
   };
-  if (bytes.size() < sizeof(kMagic) + kHashHexBytes ||
-      std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) != 0)
+  if (bytes.size() < sizeof(kMagic) + kHashHexBytes) return corrupt("not a probebake checkpoint");
+  const bool hasWork = std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) == 0;
+  if (!hasWork && std::memcmp(bytes.data(), kMagic02, sizeof(kMagic02)) != 0)
     return corrupt("not a probebake checkpoint");
   std::string_view body(bytes.data(), bytes.size() - kHashHexBytes);
   if (Sha256Hex(body) != std::string_view(bytes).substr(body.size()))
     return corrupt("checksum mismatch (torn or corrupt file)");
   Reader r(body.substr(sizeof(kMagic)));
   Checkpoint c;
-  if (!r.String(&c.jobDigest) || !ReadVolume(&r, &c.volume) || !r.Vector(&c.done) || !r.AtEnd())
+  if (!r.String(&c.jobDigest) || !ReadVolume(&r, &c.volume) || !r.Vector(&c.done))
     return corrupt("malformed contents");
+  if (hasWork && (!r.Pod(&c.work.wallSeconds) || !r.Pod(&c.work.samples) || !r.Pod(&c.work.rays)))
+    return corrupt("malformed contents");
+  if (!r.AtEnd()) return corrupt("malformed contents");
   if (c.jobDigest != expectedJobDigest)
     return corrupt(absl::StrCat("made for job digest ", c.jobDigest, ", not ", expectedJobDigest));
   if (int64_t(c.done.size()) != c.volume.grid.ProbeCount())

@@ -4,11 +4,12 @@
 // the same bits as an uninterrupted bake because finished probes are stored exactly (floats as
 // their bytes) and the baker derives every probe's samples from (seed, probe, sample) alone.
 //
-// File format (little-endian, this machine's float layout): "PBCKPT02", the job digest, the
+// File format (little-endian, this machine's float layout): "PBCKPT03", the job digest, the
 // volume (grid, order, active flags, every plane (radiance, irradiance, radiance standard
-// errors), window, stats), the done flags, then the SHA-256 of everything before it. Written
-// atomically (temporary file, fsync, rename, fsync of the folder); a file that is short, corrupt or
-// for another job digest is rejected on load.
+// errors), window, stats), the done flags, the work of the attempts so far (BakeWork), then the
+// SHA-256 of everything before it. Written atomically (temporary file, fsync, rename, fsync of the
+// folder); a file that is short, corrupt or for another job digest is rejected on load.
+// "PBCKPT02" files (no BakeWork) are still read, with zero work.
 #pragma once
 
 #include <cstdint>
@@ -21,16 +22,35 @@
 
 namespace probebake::server {
 
+// Work of a job's attempts: Bake's counters restart with every attempt, so the server carries
+// these over restarts in the checkpoint and adds them to the next attempt's counts.
+struct BakeWork {
+  double wallSeconds = 0;  // seconds spent baking, >= 0
+  int64_t samples = 0;     // sample paths traced
+  int64_t rays = 0;        // rays traced, shadow rays included
+
+  BakeWork& operator+=(const BakeWork& other) {
+    wallSeconds += other.wallSeconds;
+    samples += other.samples;
+    rays += other.rays;
+    return *this;
+  }
+};
+
 struct Checkpoint {
   std::string jobDigest;
   ProbeVolume volume;
   std::vector<uint8_t> done;  // per probe (ProbeGrid linear index): 1 when finished
+  // The work of every attempt up to this checkpoint (earlier attempts' included): what a resumed
+  // attempt starts counting from.
+  BakeWork work;
 
   int64_t DoneCount() const;
 };
 
 absl::Status WriteCheckpoint(const std::filesystem::path& path, const std::string& jobDigest,
-                             const ProbeVolume& volume, const std::vector<uint8_t>& done);
+                             const ProbeVolume& volume, const std::vector<uint8_t>& done,
+                             const BakeWork& work = {});
 
 // NOT_FOUND when there is no file; DATA_LOSS when it is unreadable or its digest differs from
 // `expectedJobDigest`.

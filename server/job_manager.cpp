@@ -564,8 +564,14 @@ JobManager::Outcome JobManager::Execute(RunningJob& job) {
   if (absl::StatusOr<Checkpoint> read = ReadCheckpoint(checkpointPath, jobDigest); read.ok()) {
     checkpoint = std::move(*read);
     job.probesResumed = checkpoint->DoneCount();
-    Logger("jobs")->info("{}: resuming from a checkpoint with {} of {} probes done", job.name,
-                         job.probesResumed, checkpoint->done.size());
+    {
+      std::lock_guard lock(mutex_);
+      job.carried = checkpoint->work;
+    }
+    Logger("jobs")->info(
+        "{}: resuming from a checkpoint with {} of {} probes done ({} samples, {:.3f} s so far)",
+        job.name, job.probesResumed, checkpoint->done.size(), checkpoint->work.samples,
+        checkpoint->work.wallSeconds);
   } else if (!absl::IsNotFound(read.status())) {
     Logger("jobs")->warn("{}: ignoring checkpoint: {}", job.name,
                          std::string(read.status().message()));
@@ -592,6 +598,14 @@ JobManager::Outcome JobManager::Execute(RunningJob& job) {
     return fail(volume.status(), "bake");
   }
 
+  // Bake counted this attempt only; the volume's `stats` metadata and the result count every
+  // attempt (threads, probes and invalidProbes describe the volume as it is).
+  {
+    std::lock_guard lock(mutex_);
+    volume->stats.wallSeconds += job.carried.wallSeconds;
+    volume->stats.samples += job.carried.samples;
+    volume->stats.rays += job.carried.rays;
+  }
   BakeStats stats = volume->stats;
   std::filesystem::path tmp =
       blobs_->tmpDir() / absl::StrCat(job.name.substr(kNamePrefix.size()), ".vdb");
@@ -620,10 +634,13 @@ JobManager::Outcome JobManager::Execute(RunningJob& job) {
 void JobManager::OnProgress(RunningJob& job, const BakeProgress& progress) {
   std::lock_guard lock(mutex_);
   v1::BakeJobProgress* p = job.record.mutable_progress();
+  job.attempt.wallSeconds = std::max(0.0, progress.elapsedSeconds);
+  job.attempt.samples = progress.samples;
+  job.attempt.rays = progress.rays;
   p->set_probes_done(progress.probesDone);
   p->set_probes_total(progress.probesTotal);
-  p->set_samples(progress.samples);
-  p->set_rays(progress.rays);
+  p->set_samples(job.carried.samples + progress.samples);
+  p->set_rays(job.carried.rays + progress.rays);
   *p->mutable_elapsed() = SecondsToDuration(std::max(0.0, progress.elapsedSeconds));
   if (progress.etaSeconds >= 0 && std::isfinite(progress.etaSeconds))
     *p->mutable_eta() = SecondsToDuration(progress.etaSeconds);
@@ -641,7 +658,13 @@ void JobManager::OnProgress(RunningJob& job, const BakeProgress& progress) {
 void JobManager::OnCheckpoint(RunningJob& job, const std::string& jobDigest,
                               const ProbeVolume& volume, const std::vector<uint8_t>& done) {
   auto start = std::chrono::steady_clock::now();
-  absl::Status written = WriteCheckpoint(CheckpointPath(job.name), jobDigest, volume, done);
+  BakeWork work;
+  {
+    std::lock_guard lock(mutex_);
+    work = job.carried;
+    work += job.attempt;
+  }
+  absl::Status written = WriteCheckpoint(CheckpointPath(job.name), jobDigest, volume, done, work);
   if (!written.ok()) {
     Logger("jobs")->warn("{}: checkpoint not written: {}", job.name,
                          std::string(written.message()));

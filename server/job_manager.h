@@ -33,6 +33,7 @@
 #include "probebake/job/limits.h"
 #include "probebake/v1/service.pb.h"
 #include "server/bake_backend.h"
+#include "server/checkpoint.h"
 #include "server/job_state.h"
 
 namespace probebake::server {
@@ -115,6 +116,9 @@ class JobManager {
     std::atomic<bool> cancel{false};
     std::atomic<int> reason{int(CancelReason::kNone)};
     int64_t probesResumed = 0;
+    // Work of earlier attempts (from the checkpoint resumed), and this attempt's as of its last
+    // progress report (Bake reports progress right before every checkpoint); mutex_ guards both.
+    BakeWork carried, attempt;
   };
 
   void DispatchLoop();

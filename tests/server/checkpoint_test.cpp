@@ -5,6 +5,7 @@
 #include <cstring>
 #include <fstream>
 
+#include "probebake/job/digest.h"
 #include "temp_dir.h"
 
 namespace probebake::server {
@@ -47,9 +48,16 @@ TEST(Checkpoint, RoundTripIsBitExact) {
   ProbeVolume v = SmallVolume();
   std::vector<uint8_t> done(v.active.begin(), v.active.end());
   auto path = dir.path() / "j.ckpt";
-  ASSERT_TRUE(WriteCheckpoint(path, "digest1", v, done).ok());
+  BakeWork work;
+  work.wallSeconds = 1.25;
+  work.samples = (int64_t(1) << 40) + 3;  // past 32 bits
+  work.rays = 987654321;
+  ASSERT_TRUE(WriteCheckpoint(path, "digest1", v, done, work).ok());
   auto read = ReadCheckpoint(path, "digest1");
   ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->work.wallSeconds, 1.25);
+  EXPECT_EQ(read->work.samples, (int64_t(1) << 40) + 3);
+  EXPECT_EQ(read->work.rays, 987654321);
   EXPECT_EQ(read->done, done);
   EXPECT_EQ(read->DoneCount(), int64_t(done.size()) - 1);
   const ProbeVolume& r = read->volume;
@@ -67,6 +75,31 @@ TEST(Checkpoint, RoundTripIsBitExact) {
   }
   EXPECT_EQ(r.window, "HANNING");
   EXPECT_EQ(r.stats.samples, 2816);
+}
+
+TEST(Checkpoint, ReadsTheFormerFormatWithZeroWork) {
+  TempDir dir;
+  ProbeVolume v = SmallVolume();
+  std::vector<uint8_t> done(v.active.begin(), v.active.end());
+  auto path = dir.path() / "j.ckpt";
+  BakeWork work;
+  work.samples = 5;
+  ASSERT_TRUE(WriteCheckpoint(path, "digest1", v, done, work).ok());
+  std::string bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  // PBCKPT02 is the same without the work (3 x 8 bytes before the 64-character hash).
+  ASSERT_EQ(bytes.substr(0, 8), "PBCKPT03");
+  std::string old = "PBCKPT02" + bytes.substr(8, bytes.size() - 8 - 24 - 64);
+  old += Sha256Hex(old);
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << old;
+  auto read = ReadCheckpoint(path, "digest1");
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->done, done);
+  EXPECT_EQ(read->work.samples, 0);
+  EXPECT_EQ(read->volume.stats.samples, 2816);
 }
 
 TEST(Checkpoint, RejectsOtherDigestsAndDamage) {

@@ -346,6 +346,21 @@ TEST(EndToEnd, KilledMidBakeTheJobCompletesOnceWithTheSameBits) {
       {"fetch", name, "--server", server.address(), "-o", (dir.path() / "server.vdb").string()});
   ASSERT_EQ(fetch.exitCode, 0) << fetch.err;
   ExpectSameVolume(dir.path() / "local.vdb", dir.path() / "server.vdb");
+  // The stats count both attempts. The second alone traced exactly (75 - resumed) x 12288
+  // samples (no adaptive stop); the first traced at least the resumed probes' samples before its
+  // checkpoint, so the total is larger (by about resumed x 12288, minus at most the last batches
+  // of probes finishing between Bake's progress report and its checkpoint snapshot).
+  auto localVolume = ReadProbeVolume((dir.path() / "local.vdb").string());
+  auto baked = ReadProbeVolume((dir.path() / "server.vdb").string());
+  ASSERT_TRUE(localVolume.ok() && baked.ok());
+  const int64_t lastAttemptOnly = (75 - resumed) * 12288;
+  EXPECT_EQ(localVolume->volume.stats.samples, 75 * 12288);
+  EXPECT_GT(baked->volume.stats.samples, lastAttemptOnly + (resumed * 12288) / 2)
+      << "the .vdb stats count the last attempt only";
+  EXPECT_GT(baked->volume.stats.rays, baked->volume.stats.samples);
+  EXPECT_NE(status.out.find("\"samples\":\"" + std::to_string(baked->volume.stats.samples) + "\""),
+            std::string::npos)
+      << "the job's result stats differ from the volume's: " << status.out;
   // Exactly one job, baked by two attempts, never two at once (one server per data folder).
   RunResult list = Cli({"list", "--server", server.address()});
   EXPECT_EQ(std::count(list.out.begin(), list.out.end(), '\n'), 1) << list.out;

@@ -58,12 +58,15 @@ absl::StatusOr<ProbeVolume> FakeBake(const BakeJob& job, const BakeOptions& opti
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
   auto lastProgress = start, lastCheckpoint = start;
+  // Like Bake, the counters cover this call only (probes resumed from a checkpoint are not
+  // counted again): the server must carry earlier attempts' counts itself.
+  int64_t bakedNow = 0;
   auto report = [&](int64_t doneCount) {
     if (!options.progress) return;
     BakeProgress p;
     p.probesDone = doneCount;
     p.probesTotal = probes;
-    p.samples = doneCount * job.settings.samplesPerProbe;
+    p.samples = bakedNow * job.settings.samplesPerProbe;
     p.rays = 2 * p.samples;
     p.elapsedSeconds = elapsed();
     p.etaSeconds = double(probes - doneCount) * std::chrono::duration<double>(probeDelay).count();
@@ -74,7 +77,12 @@ absl::StatusOr<ProbeVolume> FakeBake(const BakeJob& job, const BakeOptions& opti
   for (uint8_t d : done) doneCount += d;
   for (int64_t probe = 0; probe < probes; ++probe) {
     if (done[size_t(probe)]) continue;
-    if (options.cancel && options.cancel->load()) return absl::CancelledError("bake cancelled");
+    if (options.cancel && options.cancel->load()) {
+      // Bake's contract: a last progress report, then a last checkpoint.
+      report(doneCount);
+      if (options.checkpoint) options.checkpoint(v, done);
+      return absl::CancelledError("bake cancelled");
+    }
     std::this_thread::sleep_for(probeDelay);
     for (int c = 0; c < v.CoeffCount(); ++c)
       for (int ch = 0; ch < 3; ++ch)
@@ -86,23 +94,25 @@ absl::StatusOr<ProbeVolume> FakeBake(const BakeJob& job, const BakeOptions& opti
     v.sampleCount[size_t(probe)] = float(job.settings.samplesPerProbe);
     done[size_t(probe)] = 1;
     ++doneCount;
+    ++bakedNow;
     stats->probesBaked++;
     auto now = std::chrono::steady_clock::now();
+    // As Bake's reporter: checkpoints are taken on progress ticks, right after the report.
     if (now - lastProgress >= std::chrono::duration<double>(options.progressIntervalSeconds)) {
       report(doneCount);
       lastProgress = now;
-    }
-    if (options.checkpoint &&
-        now - lastCheckpoint >= std::chrono::duration<double>(options.checkpointIntervalSeconds)) {
-      options.checkpoint(v, done);
-      lastCheckpoint = now;
+      if (options.checkpoint && now - lastCheckpoint >= std::chrono::duration<double>(
+                                                            options.checkpointIntervalSeconds)) {
+        options.checkpoint(v, done);
+        lastCheckpoint = now;
+      }
     }
   }
   report(doneCount);
-  v.stats.wallSeconds = 0;  // fixed, so that volumes compare bit for bit
+  v.stats.wallSeconds = 0;  // fixed: uninterrupted bakes of a job give the same bytes
   v.stats.threads = 1;
   v.stats.probes = probes;
-  v.stats.samples = probes * job.settings.samplesPerProbe;
+  v.stats.samples = bakedNow * job.settings.samplesPerProbe;  // this call's, as Bake counts
   v.stats.rays = 2 * v.stats.samples;
   return v;
 }

@@ -1,8 +1,10 @@
 // A deterministic stand-in for the path tracer, for service tests: each probe's values are a hash
-// of (seed, probe index), baking a probe takes `probeDelay`, and the BakeOptions hooks (progress,
-// cancel, checkpoint, resume) behave as Bake's contract says. Resumed and uninterrupted bakes give
-// the same bits, so restart tests compare bytes. The volume is written in the checkpoint format
-// (no OpenVDB needed).
+// of (seed, probe index), baking a probe takes `probeDelay` and traces samplesPerProbe samples
+// and twice as many rays, and the BakeOptions hooks (progress, cancel, checkpoint, resume) behave
+// as Bake's: counters cover the current call only, a progress report precedes every checkpoint,
+// and a cancelled bake reports and checkpoints once more. Resumed and uninterrupted bakes give the
+// same values, so restart tests compare them. The volume is written in the checkpoint format (no
+// OpenVDB needed); its stats.wallSeconds is 0, plus what the server adds for earlier attempts.
 #pragma once
 
 #include <atomic>

@@ -530,14 +530,35 @@ TEST(Service, GracefulRestartResumesFromTheCheckpointWithTheSameBits) {
   double stopSeconds = SecondsSince(start);
   EXPECT_LT(stopSeconds, 3.0);
   s.Restart();
-  v1::BakeJob final = s.WaitFinal(created.name());
+  std::vector<v1::BakeJob> messages;
+  v1::BakeJob final = s.WaitFinal(created.name(), &messages);
   ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
   EXPECT_EQ(final.attempts(), 2);
   EXPECT_EQ(s.bakeStats().resumed.load(), 1);
   // Fewer probes baked after the restart than in all: the checkpoint was used.
   EXPECT_LT(s.bakeStats().probesBaked.load(), probes);
   EXPECT_LE(s.bakeStats().maxActivePerJob, 1);
-  ExpectFakeVolume(s.Download(final.result().volume()), probes, 9);
+  std::string volume = s.Download(final.result().volume());
+  ExpectFakeVolume(volume, probes, 9);
+  // The counts cover both attempts: the fake baker traces 16 samples and 32 rays per probe and
+  // checkpointed every probe of the first attempt when it stopped, so the totals are exact.
+  const int64_t samples = int64_t(probes) * 16;
+  EXPECT_EQ(final.result().stats().samples(), samples);
+  EXPECT_EQ(final.result().stats().rays(), 2 * samples);
+  EXPECT_EQ(final.progress().samples(), samples);
+  BakeStats stored = FakeVolumeStats(volume);  // the volume's `stats` metadata
+  EXPECT_EQ(stored.samples, samples);
+  EXPECT_EQ(stored.rays, 2 * samples);
+  EXPECT_GT(stored.wallSeconds, 0.0);  // the first attempt's time (the fake's own is 0)
+  EXPECT_EQ(stored.wallSeconds, final.result().stats().wall_seconds());
+  // Progress mid-way through the second attempt counts the resumed probes' samples too.
+  int resumedMessages = 0;
+  for (const v1::BakeJob& m : messages) {
+    if (m.state() != v1::BakeJob::RUNNING || m.progress().probes_resumed() == 0) continue;
+    EXPECT_EQ(m.progress().samples(), m.progress().probes_done() * 16) << m.DebugString();
+    ++resumedMessages;
+  }
+  EXPECT_GE(resumedMessages, 1);
 }
 
 TEST(Service, DrainingIsNotServingAndRefusesNewJobs) {

@@ -45,6 +45,15 @@ void ExpectFakeVolume(const std::string& bytes, int probes, uint64_t seed) {
             << "probe " << p << " coefficient " << c << " channel " << ch;
 }
 
+BakeStats FakeVolumeStats(const std::string& bytes) {
+  TempDir scratch;
+  std::filesystem::path file = scratch.path() / "volume.bin";
+  std::ofstream(file, std::ios::binary) << bytes;
+  auto volume = server::ReadCheckpoint(file, kFakeVolumeTag);
+  EXPECT_TRUE(volume.ok()) << volume.status();
+  return volume.ok() ? volume->volume.stats : BakeStats();
+}
+
 TestServer::TestServer(TestServerOptions options, std::filesystem::path dataDir)
     : options_(std::move(options)) {
   if (dataDir.empty()) {

@@ -25,6 +25,10 @@ v1::JobSpec SmallJob(int probes, uint64_t seed = 1);
 // value (bit for bit).
 void ExpectFakeVolume(const std::string& bytes, int probes, uint64_t seed);
 
+// The `stats` a volume written by the fake baker records (zeros, with a test failure, when the
+// bytes are not such a volume).
+BakeStats FakeVolumeStats(const std::string& bytes);
+
 struct TestServerOptions {
   std::chrono::microseconds probeDelay{2000};
   int maxConcurrentJobs = 1;
