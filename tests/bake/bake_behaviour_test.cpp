@@ -296,6 +296,67 @@ TEST(Extremes, WhiteGroundFarFromTheOriginHasNoAcne) {
   ExpectProjection(r, expected, {1, 1, 1}, "far white ground", 2 * kPi * 1e-4 * 1.5);
 }
 
+// A large tilted square through the local origin (the centre of the scene's bounds): its
+// vertices are at ~s while the points shaded near the probe are at ~0.5, so float error on the
+// surface scales with s, not with the hit point (ray_offset.h). Axis-aligned floors do not show
+// this: their coordinate along the normal is exact in float.
+Vec3d TiltedNormal() {
+  return Normalize(Vec3d{0.3, 0.2, 1});
+}
+void AddTiltedSquare(Scene* scene, double s, uint32_t material, bool facingUp) {
+  const Framed f = Framed::FromZ(TiltedNormal());
+  Vec3d c[4] = {(-f.s - f.t) * s, (f.s - f.t) * s, (f.s + f.t) * s, (-f.s + f.t) * s};
+  if (!facingUp) std::swap(c[1], c[3]);
+  AddQuad(scene, c[0], c[1], c[2], c[3], material);
+}
+
+TEST(Extremes, LargeTiltedFloorAtTheLocalOriginHasNoAcne) {
+  // White floor under a uniform sky: radiance 1 from above, rho = 0.5 from below, as
+  // WhiteGroundFarFromTheOriginHasNoAcne. Bounce rays that hit the floor again lose that light
+  // (5% of L00 at s = 1e3 before the fix). The finite floor lets the sky through below the
+  // horizon within an angle h / s of it: at most 2 pi (h / s) sr, each direction off by
+  // (1 - 0.5) |Y| <= 0.5 * 1.1 (|Y_lm| <= 1.093 up to l = 2).
+  const Vec3d n = TiltedNormal();
+  const double h = 0.5;
+  for (double s : {1e3, 2e4}) {
+    BakeJob job = MakeJob(2, 4096, n * h);
+    job.scene.environment = {Environment::Kind::kUniform, {1, 1, 1}, nullptr};
+    AddTiltedSquare(&job.scene, s, AddMaterial(&job.scene, {0.5, 0.5, 0.5}), true);
+    const std::vector<double> up = CapProjection(2, n, 0), down = CapProjection(2, -n, 0);
+    std::vector<double> expected(up.size());
+    for (size_t c = 0; c < up.size(); ++c) expected[c] = up[c] + 0.5 * down[c];
+    ExpectProjection(Probe(BakeOrDie(job), 0), expected, {1, 1, 1},
+                     "tilted white floor, half-size " + std::to_string(s),
+                     2 * kPi * (h / s) * 0.5 * 1.1);
+  }
+}
+
+TEST(Extremes, ShadowRaysReachALargeTiltedLightAtTheLocalOrigin) {
+  // A large one-sided emitting square 0.5 above the probe, facing it, and nothing else: the
+  // upper hemisphere (about the square's normal) has radiance 1. Shadow rays aimed at points on it
+  // must stop short of it by the float error of its vertices (~s), not of the points (~0.5), or
+  // they hit the light itself and NEE loses its share (FloatSlack, LightSample::vertexScale).
+  // Once as a rect light, once as an emissive mesh. Allowance: the square's finite size, as above
+  // (each missing direction off by 1 |Y|).
+  const Vec3d n = TiltedNormal();
+  const double h = 0.5;
+  const double s = 2e4;
+  for (bool mesh : {false, true}) {
+    BakeJob job = MakeJob(2, 4096, -n * h);
+    if (mesh) {
+      AddTiltedSquare(&job.scene, s, AddMaterial(&job.scene, {0, 0, 0}, {1, 1, 1}), false);
+    } else {
+      const Framed f = Framed::FromZ(n);
+      // edge1 x edge2 = -n: emits down, toward the probe.
+      job.scene.lights.push_back(
+          RectLight{(-f.s - f.t) * s, f.t * (2 * s), f.s * (2 * s), {1, 1, 1}, false});
+    }
+    ExpectProjection(Probe(BakeOrDie(job), 0), CapProjection(2, n, 0), {1, 1, 1},
+                     mesh ? "large tilted emissive mesh" : "large tilted rect light",
+                     2 * kPi * (h / s) * 1.1);
+  }
+}
+
 TEST(Extremes, OrderEightAgainstACap) {
   BakeJob job = MakeJob(8, 8192);
   job.scene.lights.push_back(SphereLight{{0.5, 0.5, 1.5}, 0.6, {1, 1, 1}});

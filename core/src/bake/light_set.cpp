@@ -92,6 +92,13 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer)
       l.area = 4 * kPi * sp->radius * sp->radius;
       l.radiance = sp->radiance;
     }
+    if (l.kind == Kind::kRect) {
+      for (const Vec3d& q :
+           {l.position, l.position + l.edge1, l.position + l.edge2, l.position + l.edge1 + l.edge2})
+        l.vertexScale = std::max(l.vertexScale, MaxComponent(Abs(q)));
+    } else if (l.kind == Kind::kDisk || l.kind == Kind::kSphere) {
+      l.vertexScale = MaxComponent(Abs(l.position)) + l.radius;
+    }
     l.power = Luminance(l.radiance);
     lights_.push_back(l);
     if (l.kind == Kind::kPoint || l.kind == Kind::kSpot || l.kind == Kind::kDirectional)
@@ -269,7 +276,8 @@ namespace {
 // (solidAnglePdf when q was sampled by solid angle, else the area pdf turned into solid angle).
 // False when q cannot light p (behind a one-sided light, or grazing).
 bool FinishAreaSampleImpl(const Vec3d& axis, double area, bool twoSided, const Vec3d& radiance,
-                          const Vec3d& p, const Vec3d& q, double solidAnglePdf, LightSample* s) {
+                          double vertexScale, const Vec3d& p, const Vec3d& q, double solidAnglePdf,
+                          LightSample* s) {
   const Vec3d v = q - p;
   const double d2 = LengthSquared(v);
   if (!(d2 > 0)) return false;
@@ -279,6 +287,7 @@ bool FinishAreaSampleImpl(const Vec3d& axis, double area, bool twoSided, const V
   if ((cosLight <= 0 && !twoSided) || cosLight == 0) return false;
   s->distance = d;
   s->point = q;
+  s->vertexScale = vertexScale;
   s->radiance = radiance;
   s->pdf = solidAnglePdf > 0 ? solidAnglePdf : d2 / (area * std::abs(cosLight));
   return true;
@@ -298,7 +307,8 @@ bool SphereCapCos(const Vec3d& centre, double radius, const Vec3d& p, double* co
 
 bool LightSet::FinishAreaSample(const LightData& l, const Vec3d& p, const Vec3d& q,
                                 double solidAnglePdf, LightSample* s) const {
-  return FinishAreaSampleImpl(l.axis, l.area, l.twoSided, l.radiance, p, q, solidAnglePdf, s);
+  return FinishAreaSampleImpl(l.axis, l.area, l.twoSided, l.radiance, l.vertexScale, p, q,
+                              solidAnglePdf, s);
 }
 
 bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, const Vec3d* n,
@@ -351,6 +361,7 @@ bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, con
       const double disc = r2 - (dc2 - b * b);
       s->distance = b - std::sqrt(std::max(0.0, disc));
       s->point = p + s->wi * s->distance;
+      s->vertexScale = l.vertexScale;
       s->radiance = l.radiance;
       s->pdf = UniformConePdf(cosMax);
       return true;
@@ -376,6 +387,7 @@ bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, con
       if (cosLight <= 0) return false;  // emissive triangles emit from their front side only
       s->distance = d;
       s->point = q;
+      s->vertexScale = std::max({MaxComponent(Abs(a)), MaxComponent(Abs(b)), MaxComponent(Abs(c))});
       s->radiance = l.radiance;
       // pmf(t) = area_t / area; uniform on t: 1 / area_t; together 1 / area.
       s->pdf = d2 / (l.area * cosLight);

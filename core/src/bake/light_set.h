@@ -33,8 +33,11 @@ struct LightSample {
   Vec3d wi;             // unit, from the shading point toward the light
   double distance = 0;  // to the sampled point; infinity for distant lights
   Vec3d point;          // the sampled point (local), when `distance` is finite
-  Vec3d radiance;       // arriving along -wi
-  double pdf = 0;       // per steradian, selection included (delta: selection pmf)
+  // Largest magnitude of the float coordinates Embree holds for the light's surface (0 for
+  // points and distant lights): the scale of the float error where a shadow ray meets it.
+  double vertexScale = 0;
+  Vec3d radiance;  // arriving along -wi
+  double pdf = 0;  // per steradian, selection included (delta: selection pmf)
   bool delta = false;
   uint32_t light = 0;  // which light
 };
@@ -108,6 +111,7 @@ class LightSet {
     Vec3d axis;      // spot: travel direction; directional/sun: toward the light; rect/disk: normal
     Vec3d edge1, edge2;                 // rect
     double radius = 0;                  // disk, sphere; mesh: bounding radius
+    double vertexScale = 0;             // rect, disk, sphere: LightSample::vertexScale
     double area = 0;                    // rect, disk, mesh (total)
     double cosInner = 1, cosOuter = 0;  // spot; sun: cosOuter = cos of the angular radius
     double oneMinusCos = 0;             // sun: 1 - cos(angular radius), without cancellation

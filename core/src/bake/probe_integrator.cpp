@@ -67,7 +67,7 @@ bool ProbeIntegrator::Unoccluded(const Vec3f& origin, const LightSample& s, Trac
   const Vec3d o(origin);
   const Vec3d v = s.point - o;
   const double d = Length(v);
-  const double maxAbs = std::max(MaxComponent(Abs(o)), MaxComponent(Abs(s.point)));
+  const double maxAbs = std::max({MaxComponent(Abs(o)), MaxComponent(Abs(s.point)), s.vertexScale});
   *tMax = d - FloatSlack(maxAbs);
   *dir = d > 0 ? v / d : s.wi;
   if (*tMax <= 0) return true;
@@ -241,7 +241,7 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
 
     // Shade on the side the ray arrived from; both sides of a mesh reflect.
     const Vec3d n = Dot(wi, hit.ng) < 0 ? hit.ng : -hit.ng;
-    const Vec3f spawn = OffsetRayOrigin(hit.pf, Vec3f(n));
+    const Vec3f spawn = OffsetRayOrigin(hit.p, n, hit.vertexScale);
     // Light importance here serves NEE and the MIS weight of the next hit; the pure
     // direction-sampling estimator needs neither.
     const double total = (lightSampling_ || mis_)

@@ -23,8 +23,10 @@ enum class SurfaceKind : uint8_t { kMesh, kRectLight, kDiskLight, kSphereLight }
 struct SurfaceHit {
   double t = 0;  // distance along the unit ray direction
   Vec3d p;       // local position
-  Vec3f pf;      // the same, in float as Embree computed it (spawn rays from this)
   Vec3d ng;      // unit geometric normal of the front (counter-clockwise / emitting) side
+  // Largest magnitude of the hit triangle's float vertex coordinates: the scale of the float
+  // error of the surface near p, as Embree sees it (ray_offset.h). Meshes only.
+  double vertexScale = 0;
   SurfaceKind kind = SurfaceKind::kMesh;
   uint32_t index = 0;  // mesh index (kMesh) or light index in Scene::lights
   uint32_t prim = 0;   // triangle index within the mesh
