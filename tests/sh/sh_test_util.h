@@ -100,4 +100,27 @@ inline double GradedIntegral(const std::function<double(double)>& f, double a, d
   return sum;
 }
 
+// The nodes and weights of GradedIntegral's rule on [a, b] (same panels, same convergence), so
+// that several integrands can share one evaluation per node: Σ_j w_j f(x_j) ≈ ∫_a^b f. Nodes
+// run panel by panel from b toward a (not sorted).
+struct GradedNodes {
+  std::vector<double> x, w;
+};
+
+inline GradedNodes GradedRule(double a, double b, int panels = 64, int points = 20) {
+  const QuadratureRule1D rule = GaussLegendreRule(points);
+  GradedNodes out;
+  double hi = b;
+  for (int k = 0; k < panels; ++k) {
+    const double lo = (k + 1 == panels) ? a : a + (hi - a) / 2;
+    const double mid = (lo + hi) / 2, half = (hi - lo) / 2;
+    for (int i = 0; i < points; ++i) {
+      out.x.push_back(mid + half * rule.nodes[i]);
+      out.w.push_back(half * rule.weights[i]);
+    }
+    hi = lo;
+  }
+  return out;
+}
+
 }  // namespace probebake::test

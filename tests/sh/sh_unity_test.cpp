@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <sstream>
@@ -84,6 +85,121 @@ TEST(UnitySh9, SkyLightIsUpInBothFrames) {
   // Float constants: relative 2^-24 on terms summing to ~0.34: 1e-6 leaves room.
   const double expected = (0.25 + 0.5 + 5.0 / 16) / kPi;
   EXPECT_NEAR(EvalUnityShadeSh9(unity, {0, 1, 0}).y, expected, 1e-6);
+}
+
+// Seed 004's ConvertSHConstants, transcribed from the seed's text (not through the library):
+//   fC0 = 1/(2 sqrtπ), fC1 = sqrt(3)/(3 sqrtπ), fC2 = sqrt(15)/(8 sqrtπ), fC3 = sqrt(5)/(16 sqrtπ),
+//   fC4 = 0.5 fC2;  for iC in 0..2:
+//   SHArBrC[iC]     = (-fC1 sh[3][iC], -fC1 sh[1][iC], fC1 sh[2][iC], fC0 sh[0][iC] - fC3
+//   sh[6][iC]) SHArBrC[iC + 3] = (fC2 sh[4][iC], -fC2 sh[5][iC], 3 fC3 sh[6][iC], -fC2 sh[7][iC])
+//   SHArBrC[6]      = (fC4 sh[8][0], fC4 sh[8][1], fC4 sh[8][2], 1)
+// Evaluated in double (the seed uses float constants; the contract is the formula). Also returns,
+// per entry, the sum of the absolute values of its terms (the scale of its rounding error).
+struct SeedPacking {
+  double value[7][4], scale[7][4];
+};
+
+SeedPacking SeedConvertShConstants(const double (&sh)[9][3]) {
+  const double sqrtPi = std::sqrt(kPi);
+  const double fC0 = 1.0 / (2.0 * sqrtPi), fC1 = std::sqrt(3.0) / (3.0 * sqrtPi);
+  const double fC2 = std::sqrt(15.0) / (8.0 * sqrtPi), fC3 = std::sqrt(5.0) / (16.0 * sqrtPi);
+  const double fC4 = 0.5 * fC2;
+  SeedPacking p;
+  for (int iC = 0; iC < 3; ++iC) {
+    const double a[4] = {-fC1 * sh[3][iC], -fC1 * sh[1][iC], fC1 * sh[2][iC],
+                         fC0 * sh[0][iC] - fC3 * sh[6][iC]};
+    const double as[4] = {std::abs(a[0]), std::abs(a[1]), std::abs(a[2]),
+                          std::abs(fC0 * sh[0][iC]) + std::abs(fC3 * sh[6][iC])};
+    const double b[4] = {fC2 * sh[4][iC], -fC2 * sh[5][iC], 3.0 * fC3 * sh[6][iC],
+                         -fC2 * sh[7][iC]};
+    for (int k = 0; k < 4; ++k) {
+      p.value[iC][k] = a[k];
+      p.scale[iC][k] = as[k];
+      p.value[iC + 3][k] = b[k];
+      p.scale[iC + 3][k] = std::abs(b[k]);
+    }
+    p.value[6][iC] = fC4 * sh[8][iC];
+    p.scale[6][iC] = std::abs(p.value[6][iC]);
+  }
+  p.value[6][3] = 1.0;
+  p.scale[6][3] = 1.0;
+  return p;
+}
+
+// One arbitrary vector: distinct, non-round values in every (coefficient, channel), mixed signs,
+// so a swapped index, channel, sign or factor changes some entry by ~ the entry itself.
+constexpr double kArbitrarySh[9][3] = {
+    {1.731, 0.912, 2.404},   {-0.377, 0.158, -0.629}, {0.843, -0.266, 0.512},
+    {-0.195, 0.701, 0.333},  {0.467, -0.588, -0.049}, {-0.724, 0.091, 0.386},
+    {0.259, -0.413, -0.817}, {0.632, 0.374, -0.148},  {-0.551, 0.207, 0.694}};
+
+// got (float) = float(x) for the library's double x = expected + δ, |δ| <= a few double roundings
+// of the entry's terms (<= 16 eps · scale, generously: each term is one product, the w entry one
+// more subtraction; the kUnityYUp case adds the SH rotation, accurate to ~10 eps of the inputs,
+// which the caller folds into scale). Rounding to float adds <= 2^-24 |x|. A wrong sign, index
+// or constant moves an entry by O(|entry|) >> 2^-24 |entry|.
+void ExpectPackingEquals(const UnitySh9Constants& got, const SeedPacking& expected,
+                         double extraScale) {
+  static const char* const kNames[7] = {"SHAr", "SHAg", "SHAb", "SHBr", "SHBg", "SHBb", "SHC"};
+  for (int v = 0; v < 7; ++v) {
+    for (int k = 0; k < 4; ++k) {
+      const double e = expected.value[v][k];
+      const double tol = std::ldexp(std::abs(e), -24) +
+                         16 * test::kDoubleEps * (expected.scale[v][k] + extraScale);
+      EXPECT_NEAR(got.v[v][k], e, tol) << kNames[v] << "[" << k << "]";
+    }
+  }
+}
+
+TEST(UnitySh9, PackingMatchesSeedConvertShConstantsLiterally) {
+  // The seed's constants are probebake's basis constants (SPEC 2, 9 digits) times Â_l/π
+  // (Â = π, 2π/3, π/4): fC0 = Y00, fC1 = 0.488602512 · 2/3, fC2 = 1.092548431/4,
+  // 3 fC3 = 0.946174696/4, fC4 = 0.546274215/4. SPEC's constants are rounded to 9 decimals
+  // (<= 5e-10), so they agree to 1e-9 absolute.
+  const double sqrtPi = std::sqrt(kPi);
+  EXPECT_NEAR(1.0 / (2.0 * sqrtPi), 0.282094792, 1e-9);
+  EXPECT_NEAR(std::sqrt(3.0) / (3.0 * sqrtPi), 0.488602512 * 2 / 3, 1e-9);
+  EXPECT_NEAR(std::sqrt(15.0) / (8.0 * sqrtPi), 1.092548431 / 4, 1e-9);
+  EXPECT_NEAR(3 * std::sqrt(5.0) / (16.0 * sqrtPi), 0.946174696 / 4, 1e-9);
+  EXPECT_NEAR(0.5 * std::sqrt(15.0) / (8.0 * sqrtPi), 0.546274215 / 4, 1e-9);
+
+  std::vector<Vec3d> radiance(9);
+  for (int i = 0; i < 9; ++i)
+    radiance[i] = {kArbitrarySh[i][0], kArbitrarySh[i][1], kArbitrarySh[i][2]};
+  const UnitySh9Constants ours = PackUnitySh9(radiance, UnityAxes::kProbebake);
+  ExpectPackingEquals(ours, SeedConvertShConstants(kArbitrarySh), 0);
+  EXPECT_EQ(ours.v[6][3], 1.0f);
+
+  // kUnityYUp: the seed's formula applied to the coefficients of L'(n_u) = L(M n_u), M: (x, y, z)
+  // -> (x, z, y). c'_i = ∫ L(ω) Y_i(M ω) dω, and by the closed forms of SPEC 2 at M ω = (x, z, y)
+  // (k1 = 0.488602512, k2 = 1.092548431, k6 = 0.946174696, k8 = 0.546274215):
+  //   Y1(Mω) = -k1 z = -Y2, Y2(Mω) = k1 y = -Y1, Y3(Mω) = Y3, Y4(Mω) = k2 xz = -Y7,
+  //   Y5(Mω) = -k2 zy = Y5, Y7(Mω) = -k2 xy = -Y4,
+  //   Y6(Mω) = k6 (y² - 1/3) = -Y6/2 - (√3/2) Y8, Y8(Mω) = k8 (x² - z²) = -(√3/2) Y6 + Y8/2
+  // (using x² + y² + z² = 1 and k6/k8 = √3).
+  const double h = std::sqrt(3.0) / 2;
+  double yUp[9][3];
+  double maxAbs = 0;
+  for (int ch = 0; ch < 3; ++ch) {
+    double c[9];
+    for (int i = 0; i < 9; ++i) {
+      c[i] = kArbitrarySh[i][ch];
+      maxAbs = std::max(maxAbs, std::abs(c[i]));
+    }
+    yUp[0][ch] = c[0];
+    yUp[1][ch] = -c[2];
+    yUp[2][ch] = -c[1];
+    yUp[3][ch] = c[3];
+    yUp[4][ch] = -c[7];
+    yUp[5][ch] = c[5];
+    yUp[6][ch] = -0.5 * c[6] - h * c[8];
+    yUp[7][ch] = -c[4];
+    yUp[8][ch] = -h * c[6] + 0.5 * c[8];
+  }
+  // The library rotates by an exact-up-to-rounding SH rotation: each rotated coefficient is off
+  // by <= ~10 eps · max|c| (a 5-term dot product of O(1) matrix entries): fold max|c| into scale.
+  ExpectPackingEquals(PackUnitySh9(radiance, UnityAxes::kUnityYUp), SeedConvertShConstants(yUp),
+                      maxAbs);
 }
 
 TEST(UnitySh9, Prints) {
