@@ -6,6 +6,7 @@
 
 #include "probebake/base/check.h"
 #include "probebake/math/frame.h"
+#include "probebake/math/sincos_turns.h"
 #include "probebake/sampling/warps.h"
 
 namespace probebake {
@@ -136,7 +137,8 @@ Vec3d EnvironmentLight::Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double
   const double lon = c.lon0 + uCell.x * (c.lon1 - c.lon0);
   const double z = c.z0 + uCell.y * (c.z1 - c.z0);
   const double r = std::sqrt(std::max(0.0, (1 - z) * (1 + z)));
-  const Vec3d mapDir{r * std::sin(lon), z, r * std::cos(lon)};
+  const SinCos sc = SinCosTurns(lon * (0.5 / kPi));
+  const Vec3d mapDir{r * sc.sin, z, r * sc.cos};
   *wi = worldFromMap_ * mapDir;
   *pdf = pmf / cellSolidAngle_[k];
   const float* rgb = &map_->rgb[3 * k];

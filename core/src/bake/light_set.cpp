@@ -62,6 +62,8 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer)
         l.cosOuter = d->cosHalfAngle;
         l.oneMinusCos = 1 - d->cosHalfAngle;
         const double sin2 = l.oneMinusCos * (1 + d->cosHalfAngle);
+        l.sin2Outer = sin2;
+        l.sinOuter = std::sqrt(sin2);
         l.radiance = d->irradiance / (kPi * sin2);
       }
     } else if (const auto* r = std::get_if<RectLight>(&light)) {
@@ -93,8 +95,12 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer)
       l.radiance = sp->radiance;
     }
     if (l.kind == Kind::kRect) {
-      for (const Vec3d& q :
-           {l.position, l.position + l.edge1, l.position + l.edge2, l.position + l.edge1 + l.edge2})
+      l.corners[0] = l.position;
+      l.corners[1] = l.position + l.edge1;
+      l.corners[2] = l.position + l.edge1 + l.edge2;
+      l.corners[3] = l.position + l.edge2;
+      l.centre = l.position + (l.edge1 + l.edge2) * 0.5;
+      for (const Vec3d& q : l.corners)
         l.vertexScale = std::max(l.vertexScale, MaxComponent(Abs(q)));
     } else if (l.kind == Kind::kDisk || l.kind == Kind::kSphere) {
       l.vertexScale = MaxComponent(Abs(l.position)) + l.radius;
@@ -162,8 +168,7 @@ constexpr double kMinSolidAngleRatio = 0.02;
 
 bool LightSet::UseSolidAngleSampling(const LightData& l, const Vec3d& p) const {
   if (!l.rectangular) return false;
-  const Vec3d centre = l.position + (l.edge1 + l.edge2) * 0.5;
-  return l.area >= kMinSolidAngleRatio * LengthSquared(centre - p);
+  return l.area >= kMinSolidAngleRatio * LengthSquared(l.centre - p);
 }
 
 double LightSet::SolidAnglePdf(const LightData& l, const Vec3d& p) const {
@@ -197,21 +202,17 @@ double LightSet::LightImportance(const LightData& l, const Vec3d& p, const Vec3d
     case Kind::kSun: {
       // E = L pi sin^2: importance in irradiance units like the others. The cap is wholly below
       // the tangent plane when its axis is more than 90 degrees + its radius from n.
-      const double sin2 = l.oneMinusCos * (1 + l.cosOuter);
-      if (n && Dot(l.axis, *n) <= -std::sqrt(sin2)) return 0;
-      return l.power * kPi * sin2;
+      if (n && Dot(l.axis, *n) <= -l.sinOuter) return 0;
+      return l.power * kPi * l.sin2Outer;
     }
     case Kind::kRect: {
       if (!l.twoSided && Dot(p - l.position, l.axis) <= 0) return 0;
       if (n) {
-        const Vec3d c[4] = {l.position, l.position + l.edge1, l.position + l.edge1 + l.edge2,
-                            l.position + l.edge2};
         bool below = true;
-        for (const Vec3d& q : c) below = below && Dot(q - p, *n) <= 0;
+        for (const Vec3d& q : l.corners) below = below && Dot(q - p, *n) <= 0;
         if (below) return 0;
       }
-      const Vec3d centre = l.position + (l.edge1 + l.edge2) * 0.5;
-      return l.power * l.area / std::max(LengthSquared(centre - p), l.area);
+      return l.power * l.area / std::max(LengthSquared(l.centre - p), l.area);
     }
     case Kind::kDisk: {
       if (!l.twoSided && Dot(p - l.position, l.axis) <= 0) return 0;

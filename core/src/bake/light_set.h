@@ -109,12 +109,15 @@ class LightSet {
                      // directional: irradiance; mesh: emission
     Vec3d position;  // point/spot; rect corner; disk/sphere centre; mesh bounds centre
     Vec3d axis;      // spot: travel direction; directional/sun: toward the light; rect/disk: normal
-    Vec3d edge1, edge2;                 // rect
-    double radius = 0;                  // disk, sphere; mesh: bounding radius
-    double vertexScale = 0;             // rect, disk, sphere: LightSample::vertexScale
-    double area = 0;                    // rect, disk, mesh (total)
-    double cosInner = 1, cosOuter = 0;  // spot; sun: cosOuter = cos of the angular radius
-    double oneMinusCos = 0;             // sun: 1 - cos(angular radius), without cancellation
+    Vec3d edge1, edge2;                  // rect
+    Vec3d corners[4];                    // rect: position, +edge1, +edge1+edge2, +edge2
+    Vec3d centre;                        // rect
+    double radius = 0;                   // disk, sphere; mesh: bounding radius
+    double vertexScale = 0;              // rect, disk, sphere: LightSample::vertexScale
+    double area = 0;                     // rect, disk, mesh (total)
+    double cosInner = 1, cosOuter = 0;   // spot; sun: cosOuter = cos of the angular radius
+    double oneMinusCos = 0;              // sun: 1 - cos(angular radius), without cancellation
+    double sinOuter = 0, sin2Outer = 0;  // sun: sin(angular radius) and its square
     bool twoSided = false;
     bool rectangular = false;  // rect with orthogonal edges
     double power = 0;          // luminance of `radiance`

@@ -63,7 +63,8 @@ class SobolSampler {
 
   // Written out from OwenScramble32 to share bit reversals: with r = ReverseBits32(index), the
   // shuffled index is i' = Rev(LK(r, s0)), dimension 0 of the Sobol point is Rev(i') and its
-  // scramble is Rev(LK(Rev(Rev(i')), s1)) = Rev(LK(i', s1)).
+  // scramble is Rev(LK(Rev(Rev(i')), s1)) = Rev(LK(i', s1)); dimension 1's scramble
+  // Rev(LK(Rev(Sobol1(i')), s2)) takes Rev(Sobol1(i')) from bit-reversed tables.
   double Get1D() {
     const uint64_t key = NextDimensionKeys().key;
     const uint32_t i = ReverseBits32(LaineKarrasPermutation(reversedIndex_, uint32_t(key)));
@@ -74,7 +75,8 @@ class SobolSampler {
     const DimensionKeys& k = NextDimensionKeys();
     const uint32_t i = ReverseBits32(LaineKarrasPermutation(reversedIndex_, uint32_t(k.key)));
     return {U32ToUnit(ReverseBits32(LaineKarrasPermutation(i, uint32_t(k.key >> 32)))),
-            U32ToUnit(OwenScramble32(SobolSample32(i, 1), uint32_t(k.key2)))};
+            U32ToUnit(ReverseBits32(
+                LaineKarrasPermutation(SobolSample32Dim1Reversed(i), uint32_t(k.key2))))};
   }
 
  private:

@@ -77,7 +77,25 @@ constexpr std::array<std::array<uint32_t, 256>, 4> MakeSobolDim1Tables() {
 
 inline constexpr std::array<std::array<uint32_t, 256>, 4> kSobolDim1Bytes = MakeSobolDim1Tables();
 
+// The same tables bit-reversed, for scrambling in the reversed domain without reversing first.
+constexpr std::array<std::array<uint32_t, 256>, 4> ReverseTables(
+    const std::array<std::array<uint32_t, 256>, 4>& t) {
+  std::array<std::array<uint32_t, 256>, 4> r{};
+  for (int b = 0; b < 4; ++b)
+    for (int x = 0; x < 256; ++x) r[b][x] = ReverseBits32(t[b][x]);
+  return r;
+}
+inline constexpr std::array<std::array<uint32_t, 256>, 4> kSobolDim1BytesReversed =
+    ReverseTables(kSobolDim1Bytes);
+
 }  // namespace detail
+
+// ReverseBits32(SobolSample32(index, 1)), without the reversal.
+constexpr uint32_t SobolSample32Dim1Reversed(uint32_t index) {
+  const auto& t = detail::kSobolDim1BytesReversed;
+  return t[0][index & 0xffu] ^ t[1][(index >> 8) & 0xffu] ^ t[2][(index >> 16) & 0xffu] ^
+         t[3][index >> 24];
+}
 
 // Sobol point `index` in dimension 0 or 1 (precondition: dimension is 0 or 1), as 32-bit fixed
 // point. Unscrambled: SobolSample32(0, d) == 0.

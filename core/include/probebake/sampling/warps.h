@@ -27,6 +27,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "probebake/math/sincos_turns.h"
 #include "probebake/math/vec3.h"
 
 namespace probebake {
@@ -40,11 +41,13 @@ inline constexpr double kPi = std::numbers::pi;
 inline constexpr double kInv2Pi = 1 / (2 * std::numbers::pi);
 inline constexpr double kInv4Pi = 1 / (4 * std::numbers::pi);
 
-// Unit vector with z = cosTheta and azimuth phi. sin theta comes from (1 - cos)(1 + cos), each
-// factor free of cancellation near its pole, so tiny polar angles keep their relative precision.
-inline Vec3d DirectionFromCosTheta(double cosTheta, double phi) {
+// Unit vector with z = cosTheta and azimuth phi = 2 pi phiTurns. sin theta comes from
+// (1 - cos)(1 + cos), each factor free of cancellation near its pole, so tiny polar angles keep
+// their relative precision.
+inline Vec3d DirectionFromCosTheta(double cosTheta, double phiTurns) {
   const double sinTheta = std::sqrt(std::max(0.0, (1 - cosTheta) * (1 + cosTheta)));
-  return {sinTheta * std::cos(phi), sinTheta * std::sin(phi), cosTheta};
+  const SinCos phi = SinCosTurns(phiTurns);
+  return {sinTheta * phi.cos, sinTheta * phi.sin, cosTheta};
 }
 
 // Azimuth of w as a fraction of a turn, in [0, 1). Undefined (returns 0) on the z axis.
@@ -62,7 +65,7 @@ inline double ClampUnit(double u) {
 
 // ---- Uniform sphere: z = 1 - 2 u.x (u.x = 0 is the +z pole), phi = 2 pi u.y.
 inline Vec3d SampleUniformSphere(Vec2d u) {
-  return detail::DirectionFromCosTheta(1 - 2 * u.x, 2 * detail::kPi * u.y);
+  return detail::DirectionFromCosTheta(1 - 2 * u.x, u.y);
 }
 inline constexpr double UniformSpherePdf() {
   return detail::kInv4Pi;
@@ -74,7 +77,7 @@ inline Vec2d InvertUniformSphereSample(const Vec3d& w) {
 
 // ---- Uniform hemisphere around +z: z = u.x, phi = 2 pi u.y.
 inline Vec3d SampleUniformHemisphere(Vec2d u) {
-  return detail::DirectionFromCosTheta(u.x, 2 * detail::kPi * u.y);
+  return detail::DirectionFromCosTheta(u.x, u.y);
 }
 inline constexpr double UniformHemispherePdf() {
   return detail::kInv2Pi;
@@ -89,15 +92,17 @@ inline Vec2d InvertUniformHemisphereSample(const Vec3d& w) {
 inline Vec2d SampleUniformDiskConcentric(Vec2d u) {
   const double ox = 2 * u.x - 1, oy = 2 * u.y - 1;
   if (ox == 0 && oy == 0) return {0, 0};
-  double r, theta;
+  // Angle theta in turns: (pi/4) (oy/ox) = (oy/ox)/8 turns, pi/2 - (pi/4)(ox/oy) = 1/4 - (ox/oy)/8.
+  double r, thetaTurns;
   if (std::abs(ox) > std::abs(oy)) {
     r = ox;
-    theta = (detail::kPi / 4) * (oy / ox);
+    thetaTurns = (oy / ox) * 0.125;
   } else {
     r = oy;
-    theta = detail::kPi / 2 - (detail::kPi / 4) * (ox / oy);
+    thetaTurns = 0.25 - (ox / oy) * 0.125;
   }
-  return {r * std::cos(theta), r * std::sin(theta)};
+  const SinCos theta = SinCosTurns(thetaTurns);
+  return {r * theta.cos, r * theta.sin};
 }
 inline constexpr double UniformDiskPdf() {
   return 1 / detail::kPi;
@@ -141,8 +146,8 @@ inline Vec2d InvertCosineHemisphereSample(const Vec3d& w) {
 inline Vec3d SampleUniformCone(Vec2d u, double cosThetaMax) {
   const double t = u.x * (1 - cosThetaMax);
   const double sinTheta = std::sqrt(std::max(0.0, t * (2 - t)));
-  const double phi = 2 * detail::kPi * u.y;
-  return {sinTheta * std::cos(phi), sinTheta * std::sin(phi), 1 - t};
+  const SinCos phi = SinCosTurns(u.y);
+  return {sinTheta * phi.cos, sinTheta * phi.sin, 1 - t};
 }
 // Density inside the cap (the caller tests membership: cos(theta) >= cosThetaMax).
 inline double UniformConePdf(double cosThetaMax) {
@@ -241,7 +246,7 @@ inline double InvertHenyeyGreensteinCosSample(double cosTheta, double g) {
 
 // Scattered propagation direction in the frame whose +z is the incoming propagation direction.
 inline Vec3d SampleHenyeyGreenstein(Vec2d u, double g) {
-  return detail::DirectionFromCosTheta(SampleHenyeyGreensteinCos(u.x, g), 2 * detail::kPi * u.y);
+  return detail::DirectionFromCosTheta(SampleHenyeyGreensteinCos(u.x, g), u.y);
 }
 // w: unit direction in the same local frame.
 inline Vec2d InvertHenyeyGreensteinSample(const Vec3d& w, double g) {
