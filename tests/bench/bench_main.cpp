@@ -110,7 +110,7 @@ std::vector<Config> AdaptiveConfigs(bool quick, int64_t cap) {
   std::vector<Config> out;
   const std::vector<double> targets =
       quick ? std::vector<double>{0.05, 0.02} : std::vector<double>{0.05, 0.02, 0.01, 0.005};
-  for (int batches : {16, 128}) {
+  for (int batches : {16, 64}) {
     for (double t : targets) {
       Config c{Format("adaptive_b%d_%g", batches, t),
                Format("adaptive %g%% (%d batches)", 100 * t, batches), "adaptive", BaseSettings()};
@@ -130,6 +130,7 @@ std::vector<Config> PresetConfigs() {
     Config c{"preset_" + v1::BakeSettings::Quality_Name(q), v1::BakeSettings::Quality_Name(q),
              "preset", BaseSettings()};
     c.settings.clear_max_depth();
+    c.settings.clear_batches();  // the preset's own default
     c.settings.set_quality(q);
     out.push_back(std::move(c));
   }

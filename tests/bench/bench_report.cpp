@@ -237,7 +237,7 @@ std::string Plot(const BenchResults& r, const std::string& scene, const std::str
   svg += Format(
       "<rect x=\"%.1f\" y=\"%.1f\" width=\"7\" height=\"7\" fill=\"none\" "
       "stroke=\"#2ca02c\" stroke-width=\"1.5\"/><text x=\"%.1f\" y=\"%.1f\">adaptive, "
-      "128 batches</text>\n",
+      "64 batches (default)</text>\n",
       legendX + 7.5, legendY - 3.5, legendX + 28, legendY + 4);
   svg += "</svg>\n";
   return svg;
@@ -451,8 +451,8 @@ std::string Markdown(const BenchResults& r) {
   md +=
       "- Explicit numbers: error falls as samples^slope (slopes in the summary, ~-0.5), so "
       "quartering the error costs 16x the samples; depth beyond 8 is nearly free (see Path "
-      "depth) and below 6 loses visible light indoors. Adaptive sampling pays only with many "
-      "batches (see Adaptive sampling).\n\n";
+      "depth) and below 6 loses visible light indoors. Adaptive sampling pays with many "
+      "batches, hence its default of 64 (see Adaptive sampling).\n\n";
 
   md +=
       "## Scenes and references\n\n| scene | what | triangles | probes (grid / baked) | "
@@ -562,8 +562,10 @@ std::string Markdown(const BenchResults& r) {
       "met when the RMS of the measured L0 errors over the probes is at or below it. Cap = "
       "largest ladder count; probes that reach it stop there whatever their error, so the last "
       "column judges the target on the probes that stopped because of it. A probe samples at "
-      "least 8 of its batches before it may stop (bake.cpp kMinAdaptiveBatches): with the "
-      "default 16 batches that is half the cap.\n\n| scene | target | batches | mean samples | "
+      "least 8 of its batches before it may stop (bake.cpp kMinAdaptiveBatches): with 16 "
+      "batches that is half the cap, with the adaptive default of 64 an eighth. It stops when an "
+      "upper confidence bound of its error, not the estimate itself, is under the target "
+      "(bake.h AdaptiveErrorBound).\n\n| scene | target | batches | mean samples | "
       "CPU s | RMS measured L0 | RMS / target | met | stopped by target | measured <= target | "
       "<= 2 target | irradiance err | RMS / target, probes stopped by target |\n"
       "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";

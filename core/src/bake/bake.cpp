@@ -38,6 +38,14 @@ constexpr uint64_t kValidityStream = ~uint64_t{0};
 // too noisy an estimate of the standard error.
 constexpr int kMinAdaptiveBatches = 8;
 
+}  // namespace
+
+double AdaptiveErrorBound(double relError, int batches) {
+  return relError * (1 + kAdaptiveSigmas / std::sqrt(2.0 * std::max(1, batches - 1)));
+}
+
+namespace {
+
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
 }
@@ -310,7 +318,9 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
             });
             if (isCancelled()) return;
             next = roundEnd;
-            if (adaptive && estimate.RelativeError(next) <= settings.targetRelError) break;
+            if (adaptive &&
+                AdaptiveErrorBound(estimate.RelativeError(next), next) <= settings.targetRelError)
+              break;
           }
           finisher.Finish(estimate, next, probe, &volume);
           done[probe].store(1, std::memory_order_release);

@@ -20,7 +20,7 @@ QualityPreset PresetFor(v1::BakeSettings::Quality quality) {
   //    one, where probes meet the 2% target at 2048 samples). Depth 8 loses 0.7%.
   //  - REFERENCE: 1.9% error (0.5% of it the reference's own), 27 ms/probe; depth 32 leaves no
   //    measurable depth bias.
-  // Adaptive probes sample at least half of the cap (8 of 16 batches) before they may stop.
+  // Adaptive probes sample at least 8 of their 64 batches (1/8 of the cap) before they may stop.
   switch (quality) {
     case v1::BakeSettings::PREVIEW:
       return {512, 6, 0.05};
@@ -72,7 +72,9 @@ BakeSettings ResolveSettings(const v1::BakeSettings& s) {
                                                            : SamplerKind::kSobol;
   r.russianRoulette = s.has_russian_roulette() ? s.russian_roulette() : true;
   r.rrMinDepth = s.has_rr_min_depth() ? s.rr_min_depth() : 3;
-  r.batches = s.has_batches() ? s.batches() : 16;
+  // Adaptive probes may stop after any round of batches, so the batch is the granularity of
+  // their sample counts: 64 batches let an easy probe stop at 8/64 of the cap, not at 8/16.
+  r.batches = s.has_batches() ? s.batches() : (r.targetRelError > 0 ? 64 : 16);
   r.backfaceFraction = s.has_backface_fraction() ? s.backface_fraction() : 0.5;
   return r;
 }

@@ -48,6 +48,16 @@ struct BakeOptions {
   double checkpointIntervalSeconds = 10;
 };
 
+// Adaptive sampling (settings.targetRelError > 0): a probe bakes batches in rounds (the first 8,
+// then 2 at a time) and stops once AdaptiveErrorBound(relative standard error, batches so far)
+// is at or below the target, or at the sample cap. The bound is an upper confidence bound on the
+// error rather than the estimate itself: stopping at the first estimate that happens to come out
+// low (optional stopping) leaves the achieved error above the target. With k batches the
+// estimated standard error has a relative spread of about 1/sqrt(2(k-1)) (Gaussian batch means);
+// the bound adds kAdaptiveSigmas of it: relError * (1 + 2 / sqrt(2(k-1))).
+inline constexpr double kAdaptiveSigmas = 2;
+double AdaptiveErrorBound(double relError, int batches);
+
 // Bakes `job`. Errors: CANCELLED when cancelled, INTERNAL for tracer failures (Embree device
 // errors), INVALID_ARGUMENT for a job the validator should have rejected.
 absl::StatusOr<ProbeVolume> Bake(const BakeJob& job, const BakeOptions& options);
