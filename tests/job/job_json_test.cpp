@@ -181,6 +181,87 @@ TEST(ParseJobJson, SyntaxErrorsGiveLineAndColumn) {
             absl::StatusCode::kInvalidArgument);
 }
 
+// Text protobuf's JSON parser rejects: a numeral beyond the range of a double, or a bare NaN or
+// Infinity, is named by its field path, with its line and column.
+TEST(ParseJobJson, NonFiniteNumeralsAndLiteralsNameTheFieldAndLine) {
+  auto parse = [](const std::string& value) {
+    return ParseJobJson(
+               "{\n"
+               "  \"scene\": {\n"
+               "    \"materials\": [\n"
+               "      {\"name\": \"white\", \"albedo\": [0.8, 0.8, 0.8]},\n"
+               "      {\"name\": \"lamp\", \"albedo\": [0.5, " +
+               value +
+               ", 0.5]}\n"
+               "    ]\n"
+               "  }\n"
+               "}\n")
+        .status();
+  };
+  const std::string path = "scene.materials[1].albedo[1]";
+  const std::string at = ", at line 5, column 40";
+  for (const std::string value : {"1e999", "-1e999", "1.5E+400"}) {
+    const absl::Status s = parse(value);
+    EXPECT_TRUE(HasFieldError(
+        s, path, value + " is not a finite number (beyond the range of a double)" + at))
+        << value;
+    EXPECT_EQ(std::string(s.message()).find('\n'), std::string::npos) << s.message();
+  }
+  for (const std::string value : {"NaN", "Infinity", "-Infinity", "nan", "-inf"}) {
+    EXPECT_TRUE(HasFieldError(parse(value), path,
+                              value + " is not a finite number (numbers must be finite)" + at))
+        << value;
+  }
+  // A 400-digit integer overflows a double too; "1e-999" (underflow to 0) is a finite number.
+  EXPECT_TRUE(HasFieldError(
+      ParseJobJson("{\"grid\": {\"counts\": [1, " + std::string(400, '9') + "]}}").status(),
+      "grid.counts[1]", "is not a finite number"));
+  std::string underflow = Example();
+  const size_t g = underflow.find("\"g\": 0.3");
+  ASSERT_NE(g, std::string::npos);
+  underflow.replace(g, 8, "\"g\": 1e-999");
+  EXPECT_TRUE(ParseJobJson(underflow).ok());
+  // At the root, in an object value, and after protobuf's leniencies (bare keys, single quotes,
+  // trailing commas), which the locator follows so it stops where protobuf stopped.
+  EXPECT_TRUE(HasFieldError(ParseJobJson("NaN").status(), "job", "NaN is not a finite number"));
+  EXPECT_TRUE(HasFieldError(ParseJobJson("{\"scene\": {\"medium\": {\"g\": -Infinity}}}").status(),
+                            "scene.medium.g", "-Infinity is not a finite number"));
+  EXPECT_TRUE(HasFieldError(
+      ParseJobJson("{grid: {'min': [1, 2, 3,], max: [1e999, 0, 0]}}").status(), "grid.max[0]",
+      "1e999 is not a finite number (beyond the range of a double), at line 1, column 34"));
+  // A file: the file, then the field.
+  testing::TempDir dir;
+  const std::string file = dir.Write("nan.json", "{\"grid\": {\"min\": [0, NaN, 0]}}");
+  EXPECT_TRUE(HasFieldError(ReadJobFile(file).status(), file + ": grid.min[1]",
+                            "NaN is not a finite number (numbers must be finite), at line 1, "
+                            "column 22"));
+}
+
+TEST(ParseJobJson, SyntaxErrorsNameTheEnclosingField) {
+  EXPECT_TRUE(HasFieldError(ParseJobJson("{\n  \"grid\": {\"min\": [1 2]}\n}").status(), "grid.min",
+                            "invalid JSON at line 2, column 22: "));
+  EXPECT_TRUE(HasFieldError(ParseJobJson("{\"grid\": {\"min\": [1, 2, 3] \"max\": 1}}").status(),
+                            "grid", "invalid JSON at line 1, column 28: "));
+  EXPECT_TRUE(HasFieldError(ParseJobJson("{\"grid\": {\"min\" [1]}}").status(), "grid.min",
+                            "invalid JSON at line 1, column 17: "));
+  EXPECT_TRUE(HasFieldError(ParseJobJson("{\"grid\": {\"min\": [1, tru]}}").status(), "grid.min[1]",
+                            "invalid JSON at line 1, column 22: "));
+  // Bytes that are not UTF-8: where protobuf stopped reading.
+  const absl::Status latin1 =
+      ParseJobJson("{\"scene\": {\"materials\": [{\"name\": \"caf\xE9\"}]}}").status();
+  EXPECT_TRUE(HasFieldError(latin1, "scene.materials[0].name", "invalid JSON at line 1, column 39"))
+      << latin1;
+  // Columns count characters, not bytes (the é is two bytes).
+  EXPECT_TRUE(HasFieldError(
+      ParseJobJson("{\"scene\": {\"materials\": [{\"name\": \"caf\xC3\xA9\", \"albedo\": [NaN]}]}}")
+          .status(),
+      "scene.materials[0].albedo[0]", "at line 1, column 54"));
+  // A syntax error before such bytes is reported as such.
+  EXPECT_TRUE(HasFieldError(
+      ParseJobJson("{\"grid\": {\"min\": [1 2]}, \"scene\": {\"x\": \"caf\xE9\"}}").status(),
+      "grid.min", "invalid JSON at line 1, column 21: "));
+}
+
 TEST(ParseJobJson, TopLevelMustBeAnObject) {
   EXPECT_TRUE(HasFieldError(ParseJobJson("[1, 2]").status(), "job", "expected an object"));
 }

@@ -36,148 +36,294 @@ using job_internal::Member;
 using job_internal::Num;
 using job_internal::Quoted;
 
-// ---- Locating a syntax error ----
-// protobuf's JSON parser says what is wrong but not where (it quotes a few characters around the
-// error). This scanner finds the byte offset of the first syntax error so the message can give a
-// line and column. It only checks the grammar; protobuf's parser remains the authority.
-class SyntaxScanner {
- public:
-  explicit SyntaxScanner(std::string_view text) : s_(text) {}
+// ---- Locating what protobuf's JSON parser rejected ----
+// protobuf's JSON parser says what is wrong but neither in which field nor at which line (it
+// quotes a few characters around the error), and some of what it rejects is a number, not syntax:
+// a literal beyond the range of a double (1e999) or a bare NaN or Infinity. This scanner runs only
+// once protobuf has rejected the text. It follows the grammar protobuf 3.21's parser accepts
+// (single-quoted strings, bare keys, trailing commas, numbers such as "1." and "-.5", any escape),
+// so it stops where protobuf stopped, and it keeps the JSON path of the value it is in. protobuf
+// remains the authority on what is valid; this only says where.
+struct JsonFault {
+  enum class Kind { kNotFound, kSyntax, kNonFinite };
+  Kind kind = Kind::kNotFound;
+  size_t offset = 0;  // byte offset of the offending token or character
+  // The value being read (or the object or array whose punctuation is wrong); empty at the root.
+  std::string path;
+  std::string token;      // kNonFinite: the number or word as written
+  bool overflow = false;  // kNonFinite: a numeral beyond the range of a double (not NaN etc.)
+};
 
-  // Offset of the first syntax error, or npos when the text is well-formed JSON.
-  size_t FirstError() {
+// Length of the longest prefix of `s` that is well-formed UTF-8 (protobuf parses no further).
+size_t ValidUtf8Prefix(std::string_view s) {
+  size_t i = 0;
+  while (i < s.size()) {
+    const unsigned char c = s[i];
+    size_t n = 0;
+    if (c < 0x80) {
+      n = 1;
+    } else if (c >= 0xC2 && c <= 0xDF) {
+      n = 2;
+    } else if (c >= 0xE0 && c <= 0xEF) {
+      n = 3;
+    } else if (c >= 0xF0 && c <= 0xF4) {
+      n = 4;
+    } else {
+      return i;
+    }
+    if (i + n > s.size()) return i;
+    for (size_t k = 1; k < n; ++k)
+      if ((static_cast<unsigned char>(s[i + k]) & 0xC0) != 0x80) return i;
+    i += n;
+  }
+  return i;
+}
+
+class FaultLocator {
+ public:
+  explicit FaultLocator(std::string_view text) : s_(text) {}
+
+  JsonFault Find() {
+    // protobuf parses the well-formed UTF-8 prefix only: its error is at the end of it, if not
+    // before.
+    const size_t size = s_.size();
+    s_ = s_.substr(0, ValidUtf8Prefix(s_));
     SkipSpace();
-    if (!ScanValue(0)) return i_;
-    SkipSpace();
-    return i_ == s_.size() ? std::string_view::npos : i_;
+    if (Value("", 0)) {
+      SkipSpace();
+      if (i_ != s_.size() || s_.size() < size) Syntax("");
+    }
+    // Running out of a cut-off prefix (in a string or array left open there) is the cut.
+    if (fault_.kind == JsonFault::Kind::kSyntax && ranOut_ && s_.size() < size)
+      fault_.offset = s_.size();
+    return fault_;
   }
 
  private:
+  // Deeper than protobuf's own limit (100 nested objects): past it, give up rather than recurse.
   static constexpr int kMaxDepth = 512;
 
+  static bool IsSpace(char c) {
+    return c == ' ' || c == '\t' || c == '\n' || c == '\v' || c == '\f' || c == '\r';
+  }
+  static bool IsLetter(char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_' || c == '$';
+  }
+  static bool IsAlphanumeric(char c) { return IsLetter(c) || (c >= '0' && c <= '9'); }
+  // The words other JSON writers use for non-finite doubles (JavaScript's, Python's, C's).
+  static bool IsNonFiniteWord(std::string_view word) {
+    if (!word.empty() && (word[0] == '-' || word[0] == '+')) word.remove_prefix(1);
+    std::string lower(word);
+    for (char& c : lower) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return lower == "nan" || lower == "inf" || lower == "infinity";
+  }
+
+  bool SyntaxAt(const std::string& path, size_t offset) {
+    fault_ = {JsonFault::Kind::kSyntax, offset, path, "", false};
+    ranOut_ = i_ >= s_.size();
+    return false;
+  }
+  bool Syntax(const std::string& path) { return SyntaxAt(path, i_); }
+  bool NonFinite(const std::string& path, size_t start, size_t end, bool overflow) {
+    fault_ = {JsonFault::Kind::kNonFinite, start, path, std::string(s_.substr(start, end - start)),
+              overflow};
+    return false;
+  }
+  bool GiveUp() {
+    fault_ = {};
+    return false;
+  }
+
   void SkipSpace() {
-    while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\t' || s_[i_] == '\n' || s_[i_] == '\r'))
-      ++i_;
+    while (i_ < s_.size() && IsSpace(s_[i_])) ++i_;
   }
-  bool Literal(std::string_view word) {
-    if (s_.substr(i_, word.size()) != word) return false;
-    i_ += word.size();
-    return true;
+  bool StartsWith(std::string_view word) const { return s_.substr(i_, word.size()) == word; }
+  size_t WordEnd(size_t from) const {
+    size_t end = from;
+    while (end < s_.size() && IsAlphanumeric(s_[end])) ++end;
+    return end;
   }
-  bool ScanString() {
-    ++i_;  // opening quote
+
+  // At a quote: past the closing one (either quote character, any escape, as protobuf reads).
+  bool String() {
+    const char quote = s_[i_++];
     while (i_ < s_.size()) {
-      const unsigned char c = s_[i_];
-      if (c == '"') {
-        ++i_;
-        return true;
-      }
-      if (c < 0x20) return false;
-      if (c == '\\') {
-        if (++i_ >= s_.size()) return false;
-        if (s_[i_] == 'u') {
-          for (int k = 0; k < 4; ++k)
-            if (++i_ >= s_.size() || !std::isxdigit(static_cast<unsigned char>(s_[i_])))
+      if (s_[i_] == '\\') {
+        if (i_ + 1 >= s_.size()) return false;
+        if (s_[i_ + 1] == 'u') {
+          for (size_t k = 2; k < 6; ++k)
+            if (i_ + k >= s_.size() || !std::isxdigit(static_cast<unsigned char>(s_[i_ + k])))
               return false;
-        } else if (!std::strchr("\"\\/bfnrt", s_[i_])) {
-          return false;
+          i_ += 6;
+        } else {
+          i_ += 2;
         }
+        continue;
       }
-      ++i_;
+      if (s_[i_++] == quote) return true;
     }
     return false;
   }
-  bool Digits() {
+
+  // At '-' or a digit. protobuf takes the run of characters that may be part of a number and
+  // converts it whole; a run that converts to an infinity is out of the range of a double.
+  bool Number(const std::string& path) {
     const size_t start = i_;
-    while (i_ < s_.size() && s_[i_] >= '0' && s_[i_] <= '9') ++i_;
-    return i_ > start;
-  }
-  bool ScanNumber() {
-    if (s_[i_] == '-') ++i_;
-    if (!Digits()) return false;
-    if (i_ < s_.size() && s_[i_] == '.') {
-      ++i_;
-      if (!Digits()) return false;
+    if (s_[i_] == '-' && i_ + 1 < s_.size() && IsLetter(s_[i_ + 1])) {
+      const size_t end = WordEnd(i_ + 1);
+      if (IsNonFiniteWord(s_.substr(start, end - start))) return NonFinite(path, start, end, false);
+      return Syntax(path);
     }
-    if (i_ < s_.size() && (s_[i_] == 'e' || s_[i_] == 'E')) {
-      ++i_;
-      if (i_ < s_.size() && (s_[i_] == '+' || s_[i_] == '-')) ++i_;
-      if (!Digits()) return false;
+    size_t end = i_;
+    bool floating = false;
+    for (; end < s_.size(); ++end) {
+      const char c = s_[end];
+      if (c >= '0' && c <= '9') continue;
+      if (c == '.' || c == 'e' || c == 'E') {
+        floating = true;
+        continue;
+      }
+      if (c == '+' || c == '-' || c == 'x') continue;
+      break;
     }
+    const std::string number(s_.substr(start, end - start));
+    const bool negative = number[0] == '-';
+    if (!floating && number.size() >= (negative ? 3u : 2u) && number[negative ? 1 : 0] == '0')
+      return Syntax(path);  // octal or hex
+    char* parsedEnd = nullptr;
+    const double x = std::strtod(number.c_str(), &parsedEnd);
+    if (parsedEnd != number.c_str() + number.size()) return Syntax(path);
+    if (!std::isfinite(x)) return NonFinite(path, start, end, true);
+    i_ = end;
     return true;
   }
-  bool ScanValue(int depth) {
-    if (i_ >= s_.size() || depth > kMaxDepth) return false;
-    switch (s_[i_]) {
-      case '{': {
-        ++i_;
-        SkipSpace();
-        if (i_ < s_.size() && s_[i_] == '}') return ++i_, true;
-        while (true) {
-          SkipSpace();
-          if (i_ >= s_.size() || s_[i_] != '"' || !ScanString()) return false;
-          SkipSpace();
-          if (i_ >= s_.size() || s_[i_] != ':') return false;
-          ++i_;
-          SkipSpace();
-          if (!ScanValue(depth + 1)) return false;
-          SkipSpace();
-          if (i_ < s_.size() && s_[i_] == ',') {
-            ++i_;
-            continue;
-          }
-          if (i_ < s_.size() && s_[i_] == '}') return ++i_, true;
-          return false;
-        }
+
+  bool Value(const std::string& path, int depth) {
+    if (depth > kMaxDepth) return GiveUp();
+    if (i_ >= s_.size()) return Syntax(path);
+    const char c = s_[i_];
+    if (c == '{') return Object(path, depth + 1);
+    if (c == '[') return Array(path, depth + 1);
+    if (c == '"' || c == '\'') {
+      const size_t start = i_;
+      if (String()) return true;
+      return SyntaxAt(path, start);  // at the opening quote
+    }
+    if (c == '-' || (c >= '0' && c <= '9')) return Number(path);
+    for (std::string_view keyword : {"true", "false", "null"}) {
+      if (StartsWith(keyword)) {
+        i_ += keyword.size();
+        return true;
       }
-      case '[': {
+    }
+    const size_t end = WordEnd(i_);
+    if (end > i_ && IsNonFiniteWord(s_.substr(i_, end - i_)))
+      return NonFinite(path, i_, end, false);
+    return Syntax(path);
+  }
+
+  bool Object(const std::string& path, int depth) {
+    ++i_;  // '{'
+    while (true) {
+      SkipSpace();
+      if (i_ >= s_.size()) return Syntax(path);
+      if (s_[i_] == '}') {  // also after a trailing comma, as protobuf allows
         ++i_;
-        SkipSpace();
-        if (i_ < s_.size() && s_[i_] == ']') return ++i_, true;
-        while (true) {
-          SkipSpace();
-          if (!ScanValue(depth + 1)) return false;
-          SkipSpace();
-          if (i_ < s_.size() && s_[i_] == ',') {
-            ++i_;
-            continue;
-          }
-          if (i_ < s_.size() && s_[i_] == ']') return ++i_, true;
-          return false;
-        }
+        return true;
       }
-      case '"':
-        return ScanString();
-      case 't':
-        return Literal("true");
-      case 'f':
-        return Literal("false");
-      case 'n':
-        return Literal("null");
-      default:
-        return ScanNumber();
+      const size_t start = i_;
+      std::string key;
+      if (s_[i_] == '"' || s_[i_] == '\'') {
+        if (!String()) return SyntaxAt(path, start);
+        key = s_.substr(start + 1, i_ - start - 2);
+      } else if (IsLetter(s_[i_])) {
+        i_ = WordEnd(i_);
+        key = s_.substr(start, i_ - start);
+      } else {
+        return Syntax(path);
+      }
+      const std::string member = Member(path, key);
+      SkipSpace();
+      if (i_ >= s_.size() || s_[i_] != ':') return Syntax(member);
+      ++i_;
+      SkipSpace();
+      if (!Value(member, depth)) return false;
+      SkipSpace();
+      if (i_ < s_.size() && s_[i_] == ',') {
+        ++i_;
+        continue;
+      }
+      if (i_ < s_.size() && s_[i_] == '}') {
+        ++i_;
+        return true;
+      }
+      return Syntax(path);
+    }
+  }
+
+  bool Array(const std::string& path, int depth) {
+    ++i_;  // '['
+    for (int64_t index = 0;; ++index) {
+      SkipSpace();
+      if (i_ >= s_.size()) return Syntax(path);
+      if (s_[i_] == ']') {  // also after a trailing comma, as protobuf allows
+        ++i_;
+        return true;
+      }
+      if (!Value(Index(path, index), depth)) return false;
+      SkipSpace();
+      if (i_ < s_.size() && s_[i_] == ',') {
+        ++i_;
+        continue;
+      }
+      if (i_ < s_.size() && s_[i_] == ']') {
+        ++i_;
+        return true;
+      }
+      return Syntax(path);
     }
   }
 
   std::string_view s_;
   size_t i_ = 0;
+  JsonFault fault_;
+  bool ranOut_ = false;  // the syntax fault is the end of the text (of its UTF-8 prefix)
 };
 
-std::string InvalidJsonMessage(std::string_view text, std::string_view protobufMessage) {
-  // protobuf's first line is the reason; the rest quotes the text around the error.
-  std::string reason(protobufMessage.substr(0, protobufMessage.find('\n')));
-  const size_t offset = SyntaxScanner(text).FirstError();
-  if (offset == std::string_view::npos) return "invalid JSON: " + reason;
+// "line L, column C" of byte `offset`; columns count characters (UTF-8 sequences), from 1.
+std::string LineAndColumn(std::string_view text, size_t offset) {
   size_t line = 1, column = 1;
   for (size_t k = 0; k < offset && k < text.size(); ++k) {
     if (text[k] == '\n') {
       ++line;
       column = 1;
-    } else {
+    } else if ((static_cast<unsigned char>(text[k]) & 0xC0) != 0x80) {
       ++column;
     }
   }
-  return "invalid JSON at line " + Num(line) + ", column " + Num(column) + ": " + reason;
+  return "line " + Num(line) + ", column " + Num(column);
+}
+
+// The message for text protobuf's JSON parser rejected with `protobufMessage`: the field path and
+// the line and column when the scanner finds them.
+std::string InvalidJsonMessage(std::string_view text, std::string_view protobufMessage) {
+  // protobuf's first line is the reason; the rest quotes the text around the error.
+  const std::string reason(protobufMessage.substr(0, protobufMessage.find('\n')));
+  const JsonFault fault = FaultLocator(text).Find();
+  const std::string where = LineAndColumn(text, fault.offset);
+  switch (fault.kind) {
+    case JsonFault::Kind::kNonFinite:
+      return (fault.path.empty() ? std::string("job") : fault.path) + ": " + fault.token +
+             " is not a finite number (" +
+             (fault.overflow ? "beyond the range of a double" : "numbers must be finite") +
+             "), at " + where;
+    case JsonFault::Kind::kSyntax:
+      return (fault.path.empty() ? "" : fault.path + ": ") + "invalid JSON at " + where + ": " +
+             reason;
+    case JsonFault::Kind::kNotFound:
+      break;
+  }
+  return "invalid JSON: " + reason;
 }
 
 // ---- The typed walk ----

@@ -17,8 +17,15 @@
 //
 // Errors are INVALID_ARGUMENT; when several fields are wrong the message holds one
 // "<field path>: <reason>" line per error (at most 50), in document order of the descriptor walk
-// (keys sorted within an object). Invalid JSON syntax gives one message from the JSON parser, which
-// quotes the text around the error.
+// (keys sorted within an object). Text protobuf's JSON parser rejects gives one line, with the
+// field path and the line and column when they can be found (JSON paths here are the keys as
+// written):
+//   scene.materials[1].albedo[1]: 1e999 is not a finite number (beyond the range of a double),
+//     at line 5, column 41
+//   grid.min[0]: NaN is not a finite number (numbers must be finite), at line 2, column 20
+//   grid.min: invalid JSON at line 2, column 22: Expected , or ] after array value.
+// (the first two on one line each); a bare NaN, Infinity or -Infinity, and any numeral beyond the
+// range of a double, are reported as non-finite numbers.
 //
 // Parsing does not validate values (ranges, lengths, references): see ValidateJobSpec
 // (probebake/job/validate.h).
