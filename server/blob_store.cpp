@@ -98,7 +98,13 @@ void BlobUpload::Release() {
 }
 
 absl::Status BlobUpload::Open() {
-  fd_ = ::open(partialPath_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  fd_ = ::open(partialPath_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
+  if (fd_ >= 0) {
+    // A new partial upload: its name must survive a crash as its bytes will.
+    PB_RETURN_IF_ERROR(FsyncDir(partialPath_.parent_path()));
+  } else if (errno == EEXIST) {
+    fd_ = ::open(partialPath_.c_str(), O_RDWR | O_CLOEXEC);
+  }
   if (fd_ < 0) return ErrnoError("open", partialPath_, errno);
   struct stat st;
   if (::fstat(fd_, &st) != 0) return ErrnoError("stat", partialPath_, errno);
@@ -223,11 +229,26 @@ std::vector<v1::Digest> BlobStore::FindMissing(const std::vector<v1::Digest>& di
   return missing;
 }
 
-int64_t BlobStore::CommittedSize(const v1::Digest& digest, bool* complete) const {
+absl::StatusOr<int64_t> BlobStore::CommittedSize(const v1::Digest& digest, bool* complete) const {
   *complete = Contains(digest);
   if (*complete) return digest.size_bytes();
+  const fs::path partial = PartialPath(digest);
+  const int fd = ::open(partial.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    if (errno == ENOENT) return 0;
+    return ErrnoError("open", partial, errno);
+  }
+  // The size first, then the sync: uploads only append, so every byte counted was written before
+  // the fdatasync began and is on disk when it returns. (An open upload goes on appending.)
   struct stat st;
-  if (::stat(PartialPath(digest).c_str(), &st) != 0) return 0;
+  absl::Status status;
+  if (::fstat(fd, &st) != 0) {
+    status = ErrnoError("stat", partial, errno);
+  } else if (::fdatasync(fd) != 0) {
+    status = ErrnoError("fdatasync", partial, errno);
+  }
+  ::close(fd);
+  PB_RETURN_IF_ERROR(status);
   return st.st_size <= digest.size_bytes() ? int64_t(st.st_size) : 0;
 }
 

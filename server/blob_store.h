@@ -7,6 +7,14 @@
 // its bytes fsynced (temporary name, fsync, rename, fsync of the folder), so a reader never sees
 // a partial or corrupt blob under a digest.
 //
+// Durability of partial uploads: Append does not sync (a sync per chunk would tie upload speed to
+// the disk's flush latency); instead the bytes are synced before the server tells a client how
+// many it holds. CommittedSize (QueryWriteStatus) syncs the partial file before it answers, and
+// an upload closed without Commit (stream broken or ended, or a bad chunk: the client is then
+// told the committed size) syncs on close. So a committed size the client was given survives a
+// crash of the server or the machine; bytes never acknowledged may be lost, and QueryWriteStatus
+// after a restart reports what is on disk.
+//
 // Thread safety: every method may be called from any thread. At most one upload per digest is
 // open at a time (a second one gets ABORTED).
 #pragma once
@@ -99,8 +107,9 @@ class BlobStore {
   // The digests not stored, in order, without duplicates (digests must be valid).
   std::vector<v1::Digest> FindMissing(const std::vector<v1::Digest>& digests) const;
 
-  // Bytes held for an upload of `digest`: its size when stored, the partial size otherwise.
-  int64_t CommittedSize(const v1::Digest& digest, bool* complete) const;
+  // Bytes held for an upload of `digest`: its size when stored, the partial size otherwise, synced
+  // to disk before this returns (an error when the sync fails).
+  absl::StatusOr<int64_t> CommittedSize(const v1::Digest& digest, bool* complete) const;
 
   // Opens an upload (resuming any partial one). INVALID_ARGUMENT past maxBlobBytes, ABORTED when
   // another upload of the same digest is open.

@@ -1,5 +1,6 @@
 #include "server/checkpoint.h"
 
+#include <algorithm>
 #include <cstring>
 #include <type_traits>
 
@@ -126,6 +127,12 @@ bool ReadVolume(Reader* r, ProbeVolume* v) {
 
 }  // namespace
 
+std::filesystem::path CheckpointFilePath(const std::filesystem::path& dataDir,
+                                         std::string_view jobName) {
+  std::string_view id = jobName.substr(std::min(jobName.find('/') + 1, jobName.size()));
+  return dataDir / "checkpoints" / (std::string(id) + ".ckpt");
+}
+
 int64_t Checkpoint::DoneCount() const {
   int64_t n = 0;
   for (uint8_t d : done) n += d != 0;
@@ -148,8 +155,11 @@ absl::Status WriteCheckpoint(const std::filesystem::path& path, const std::strin
   return WriteFileAtomic(path, w.bytes());
 }
 
-absl::StatusOr<Checkpoint> ReadCheckpoint(const std::filesystem::path& path,
-                                          const std::string& expectedJobDigest) {
+namespace {
+
+// `expectedJobDigest` null: any.
+absl::StatusOr<Checkpoint> Read(const std::filesystem::path& path,
+                                const std::string* expectedJobDigest) {
   PB_ASSIGN_OR_RETURN(std::string bytes, ReadWholeFile(path));
   auto corrupt = [&](std::string_view why) {
     return absl::DataLossError(absl::StrCat("checkpoint ", path.string(), ": ", std::string(why)));
@@ -168,11 +178,22 @@ absl::StatusOr<Checkpoint> ReadCheckpoint(const std::filesystem::path& path,
   if (hasWork && (!r.Pod(&c.work.wallSeconds) || !r.Pod(&c.work.samples) || !r.Pod(&c.work.rays)))
     return corrupt("malformed contents");
   if (!r.AtEnd()) return corrupt("malformed contents");
-  if (c.jobDigest != expectedJobDigest)
-    return corrupt(absl::StrCat("made for job digest ", c.jobDigest, ", not ", expectedJobDigest));
+  if (expectedJobDigest && c.jobDigest != *expectedJobDigest)
+    return corrupt(absl::StrCat("made for job digest ", c.jobDigest, ", not ", *expectedJobDigest));
   if (int64_t(c.done.size()) != c.volume.grid.ProbeCount())
     return corrupt("done flags do not match the grid");
   return c;
+}
+
+}  // namespace
+
+absl::StatusOr<Checkpoint> ReadCheckpoint(const std::filesystem::path& path,
+                                          const std::string& expectedJobDigest) {
+  return Read(path, &expectedJobDigest);
+}
+
+absl::StatusOr<Checkpoint> ReadCheckpointOfAnyJob(const std::filesystem::path& path) {
+  return Read(path, nullptr);
 }
 
 }  // namespace probebake::server

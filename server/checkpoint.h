@@ -15,6 +15,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -48,6 +49,11 @@ struct Checkpoint {
   int64_t DoneCount() const;
 };
 
+// Where the server keeps the checkpoint of job `jobName` ("bakeJobs/<id>"):
+// DATA/checkpoints/<id>.ckpt.
+std::filesystem::path CheckpointFilePath(const std::filesystem::path& dataDir,
+                                         std::string_view jobName);
+
 absl::Status WriteCheckpoint(const std::filesystem::path& path, const std::string& jobDigest,
                              const ProbeVolume& volume, const std::vector<uint8_t>& done,
                              const BakeWork& work = {});
@@ -56,5 +62,9 @@ absl::Status WriteCheckpoint(const std::filesystem::path& path, const std::strin
 // `expectedJobDigest`.
 absl::StatusOr<Checkpoint> ReadCheckpoint(const std::filesystem::path& path,
                                           const std::string& expectedJobDigest);
+
+// The same checks, whatever job digest the file was made for (tests and diagnostics, which read
+// what a server left on disk without rebuilding the job).
+absl::StatusOr<Checkpoint> ReadCheckpointOfAnyJob(const std::filesystem::path& path);
 
 }  // namespace probebake::server

@@ -108,7 +108,7 @@ JobManager::~JobManager() {
 }
 
 std::filesystem::path JobManager::CheckpointPath(const std::string& name) const {
-  return config_.dataDir / "checkpoints" / absl::StrCat(name.substr(kNamePrefix.size()), ".ckpt");
+  return CheckpointFilePath(config_.dataDir, name);
 }
 
 absl::Status JobManager::Start() {

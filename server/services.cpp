@@ -118,7 +118,13 @@ grpc::ServerUnaryReactor* ContentStorageService::QueryWriteStatus(
   if (absl::Status valid = ValidateDigest(request->digest(), "digest"); !valid.ok())
     return Done(context, valid);
   bool complete = false;
-  response->set_committed_size(blobs_->CommittedSize(request->digest(), &complete));
+  absl::StatusOr<int64_t> committed = blobs_->CommittedSize(request->digest(), &complete);
+  if (!committed.ok()) {
+    Logger("blobs")->warn("QueryWriteStatus {}: {}", DigestString(request->digest()),
+                          std::string(committed.status().message()));
+    return Done(context, committed.status());
+  }
+  response->set_committed_size(*committed);
   response->set_complete(complete);
   return Done(context, grpc::Status::OK);
 }
@@ -379,7 +385,7 @@ class WatchStream final : public JobSubscriber {
 
   void OnJobUpdate(const v1::BakeJob& job) override {
     std::lock_guard lock(mutex_);
-    if (finishing_ || !reactor_) return;
+    if (finishing_ || cancelled_ || !reactor_) return;
     pending_ = job;
     if (spec_) *pending_->mutable_job() = *spec_;
     if (!writing_) WriteNextLocked();
@@ -389,7 +395,7 @@ class WatchStream final : public JobSubscriber {
 
   bool Detached() const override {
     std::lock_guard lock(mutex_);
-    return finishing_ || !reactor_;
+    return finishing_ || cancelled_ || !reactor_;
   }
 
   void End(const grpc::Status& status) {
@@ -407,7 +413,7 @@ class WatchStream final : public JobSubscriber {
     std::lock_guard lock(mutex_);
     writing_ = false;
     if (finishing_ || !reactor_) return;
-    if (!ok) {
+    if (!ok || cancelled_) {
       finishing_ = true;
       reactor_->Finish({grpc::StatusCode::CANCELLED, "the client went away"});
       return;
@@ -420,9 +426,16 @@ class WatchStream final : public JobSubscriber {
     if (pending_) WriteNextLocked();
   }
 
+  // From OnCancel. gRPC runs OnCancel and OnWriteDone on its executor in no set order, and a
+  // write that reached the client before it cancelled completes with ok = true: a write in flight
+  // need not report the cancel, so WriteDone finishes the call when it sees `cancelled_`.
   void Cancelled() {
     std::lock_guard lock(mutex_);
-    if (finishing_ || !reactor_ || writing_) return;  // a pending write reports the cancel
+    if (finishing_ || !reactor_) return;
+    if (writing_) {
+      cancelled_ = true;
+      return;
+    }
     finishing_ = true;
     reactor_->Finish({grpc::StatusCode::CANCELLED, "the client went away"});
   }
@@ -454,6 +467,7 @@ class WatchStream final : public JobSubscriber {
   std::optional<grpc::Status> endStatus_;           // finish once the current write is done
   bool writing_ = false;
   bool finishing_ = false;
+  bool cancelled_ = false;  // the client went away while a write was in flight
 };
 
 class WatchReactor final : public grpc::ServerWriteReactor<v1::BakeJob> {

@@ -110,6 +110,11 @@ TEST(Checkpoint, RejectsOtherDigestsAndDamage) {
   EXPECT_EQ(ReadCheckpoint(path, "d").status().code(), absl::StatusCode::kNotFound);
   ASSERT_TRUE(WriteCheckpoint(path, "digest1", v, done).ok());
   EXPECT_EQ(ReadCheckpoint(path, "digest2").status().code(), absl::StatusCode::kDataLoss);
+  // Without an expected digest (tests reading what a server left): any digest, same checks.
+  auto any = ReadCheckpointOfAnyJob(path);
+  ASSERT_TRUE(any.ok()) << any.status();
+  EXPECT_EQ(any->jobDigest, "digest1");
+  EXPECT_EQ(any->DoneCount(), int64_t(v.grid.ProbeCount()) - 1);
   // A flipped byte and a torn (truncated) file are both caught by the checksum.
   std::string bytes;
   {
@@ -124,6 +129,12 @@ TEST(Checkpoint, RejectsOtherDigestsAndDamage) {
   EXPECT_EQ(ReadCheckpoint(path, "digest1").status().code(), absl::StatusCode::kDataLoss);
   std::ofstream(path, std::ios::binary | std::ios::trunc) << "garbage";
   EXPECT_EQ(ReadCheckpoint(path, "digest1").status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_EQ(ReadCheckpointOfAnyJob(path).status().code(), absl::StatusCode::kDataLoss);
+}
+
+TEST(Checkpoint, FilePathIsTheJobIdUnderCheckpoints) {
+  EXPECT_EQ(CheckpointFilePath("/data", "bakeJobs/0123456789abcdef"),
+            std::filesystem::path("/data/checkpoints/0123456789abcdef.ckpt"));
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include "probebake/job/digest.h"
 #include "probebake/job/job_json.h"
 #include "probebake/volume/vdb_io.h"
+#include "server/checkpoint.h"
 #include "subprocess.h"
 #include "test_server.h"
 
@@ -307,7 +308,8 @@ TEST(EndToEnd, KilledMidBakeTheJobCompletesOnceWithTheSameBits) {
   ASSERT_EQ(local.exitCode, 0) << local.err;
 
   std::string name;
-  int64_t doneAtKill = 0;
+  int64_t doneAtKill = 0;     // probes done as the job's progress said just before the kill
+  server::Checkpoint atKill;  // the checkpoint on disk when the server was killed
   {
     ServerProcess server(dir.path(), {"--checkpoint-interval", "0.2"});
     RunResult submit = Cli({"submit", job.string(), "--server", server.address()});
@@ -317,17 +319,34 @@ TEST(EndToEnd, KilledMidBakeTheJobCompletesOnceWithTheSameBits) {
     options.server = server.address();
     auto c = client::Client::Connect(options);
     ASSERT_TRUE(c.ok());
-    for (int i = 0; i < 1000; ++i) {
+    // Bake publishes a tick's progress before it writes that tick's checkpoint, so probes done
+    // say nothing of what is on disk: wait for a checkpoint that holds at least 8 probes, then
+    // kill. (A bound of 120 s, far above the few seconds the whole bake takes on two cores.)
+    const std::filesystem::path checkpointFile =
+        server::CheckpointFilePath(dir.path() / "data", name);
+    auto start = steady_clock::now();
+    int64_t checkpointed = 0;
+    while (checkpointed < 8) {
+      ASSERT_LT(SecondsSince(start), 120) << "no checkpoint with 8 probes done\n" << server.log();
       auto got = (*c)->GetJob(name);
-      ASSERT_TRUE(got.ok());
+      ASSERT_TRUE(got.ok()) << got.status();
+      ASSERT_NE(got->state(), v1::BakeJob::SUCCEEDED) << "the bake finished before it was killed";
+      ASSERT_TRUE(got->state() == v1::BakeJob::QUEUED || got->state() == v1::BakeJob::RUNNING)
+          << got->DebugString();
       doneAtKill = got->progress().probes_done();
-      if (got->state() == v1::BakeJob::RUNNING && doneAtKill >= 16) break;
-      std::this_thread::sleep_for(milliseconds(20));
+      auto read = server::ReadCheckpointOfAnyJob(checkpointFile);
+      if (read.ok()) checkpointed = read->DoneCount();
+      if (checkpointed < 8) std::this_thread::sleep_for(milliseconds(20));
     }
-    ASSERT_GE(doneAtKill, 16);
-    ASSERT_LT(doneAtKill, 75) << "the bake finished before it could be killed";
     server.process().Signal(SIGKILL);
     EXPECT_EQ(server.process().Wait(seconds(10)), -SIGKILL);
+    // Written atomically, so this is the file the restarted server resumes from (a later tick
+    // may have replaced the one seen above before the kill landed).
+    auto read = server::ReadCheckpointOfAnyJob(checkpointFile);
+    ASSERT_TRUE(read.ok()) << read.status();
+    atKill = std::move(*read);
+    ASSERT_GE(atKill.DoneCount(), 8);
+    ASSERT_LT(atKill.DoneCount(), 75) << "the bake finished before it was killed";
   }
   auto restart = steady_clock::now();
   ServerProcess server(dir.path(), {"--checkpoint-interval", "0.2"});
@@ -340,23 +359,21 @@ TEST(EndToEnd, KilledMidBakeTheJobCompletesOnceWithTheSameBits) {
   size_t at = status.out.find("\"probesResumed\":\"");
   ASSERT_NE(at, std::string::npos) << status.out;
   int64_t resumed = std::stoll(status.out.substr(at + 17));
-  EXPECT_GT(resumed, 0);
-  EXPECT_LE(resumed, doneAtKill);
+  EXPECT_EQ(resumed, atKill.DoneCount()) << "not resumed from the checkpoint left by the kill";
   RunResult fetch = Cli(
       {"fetch", name, "--server", server.address(), "-o", (dir.path() / "server.vdb").string()});
   ASSERT_EQ(fetch.exitCode, 0) << fetch.err;
   ExpectSameVolume(dir.path() / "local.vdb", dir.path() / "server.vdb");
-  // The stats count both attempts. The second alone traced exactly (75 - resumed) x 12288
-  // samples (no adaptive stop); the first traced at least the resumed probes' samples before its
-  // checkpoint, so the total is larger (by about resumed x 12288, minus at most the last batches
-  // of probes finishing between Bake's progress report and its checkpoint snapshot).
+  // The stats count both attempts: the first's work as its checkpoint recorded it (the work
+  // the killed process did after it is lost, like the probes it finished meanwhile), then the
+  // second's, which traced exactly (75 - resumed) x 12288 samples (no adaptive stop).
   auto localVolume = ReadProbeVolume((dir.path() / "local.vdb").string());
   auto baked = ReadProbeVolume((dir.path() / "server.vdb").string());
   ASSERT_TRUE(localVolume.ok() && baked.ok());
-  const int64_t lastAttemptOnly = (75 - resumed) * 12288;
   EXPECT_EQ(localVolume->volume.stats.samples, 75 * 12288);
-  EXPECT_GT(baked->volume.stats.samples, lastAttemptOnly + (resumed * 12288) / 2)
-      << "the .vdb stats count the last attempt only";
+  EXPECT_GT(atKill.work.samples, 0) << "the checkpoint holds no work of the first attempt";
+  EXPECT_EQ(baked->volume.stats.samples, atKill.work.samples + (75 - resumed) * 12288)
+      << "the .vdb stats do not count the first attempt's work as checkpointed";
   EXPECT_GT(baked->volume.stats.rays, baked->volume.stats.samples);
   EXPECT_NE(status.out.find("\"samples\":\"" + std::to_string(baked->volume.stats.samples) + "\""),
             std::string::npos)
@@ -365,9 +382,11 @@ TEST(EndToEnd, KilledMidBakeTheJobCompletesOnceWithTheSameBits) {
   RunResult list = Cli({"list", "--server", server.address()});
   EXPECT_EQ(std::count(list.out.begin(), list.out.end(), '\n'), 1) << list.out;
   std::printf(
-      "killed at %lld/75 probes; restarted server serving after %.3f s; resumed %lld "
-      "probes from the checkpoint; job done %.3f s after the restart\n",
-      (long long)doneAtKill, servingSeconds, (long long)resumed, doneSeconds);
+      "killed at %lld/75 probes (progress), %lld in the checkpoint on disk; restarted server "
+      "serving after %.3f s; resumed %lld probes from the checkpoint; job done %.3f s after the "
+      "restart\n",
+      (long long)doneAtKill, (long long)atKill.DoneCount(), servingSeconds, (long long)resumed,
+      doneSeconds);
 }
 
 TEST(EndToEnd, SubmitToRunningLatencyAndFetchThroughput) {

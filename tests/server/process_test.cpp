@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "client/client.h"
+#include "server/checkpoint.h"
 #include "subprocess.h"
 #include "test_server.h"
 
@@ -73,7 +74,7 @@ TEST(ServerProcess, SigkillMidBakeThenRestartCompletesOnceWithTheSameBits) {
   auto log = dir.path() / "server.log";
   const int probes = 300;
   std::string nameA, nameB;
-  int64_t doneAtKill = 0;
+  int64_t doneAtKill = 0, checkpointedAtKill = 0;
   {
     FakeServerProcess server(data, log,
                              {"--probe-delay-us", "5000", "--checkpoint-interval", "0.05"});
@@ -88,9 +89,25 @@ TEST(ServerProcess, SigkillMidBakeThenRestartCompletesOnceWithTheSameBits) {
     nameB = b->name();
     v1::BakeJob running = WaitProgress(*c, nameA, 100);
     ASSERT_EQ(running.state(), v1::BakeJob::RUNNING);
-    doneAtKill = running.progress().probes_done();
+    // The baker reports a tick's progress before it writes that tick's checkpoint, so progress
+    // says nothing of what is on disk: wait for a checkpoint with 50 probes (one is written on
+    // every progress tick, 0.25 s apart, about 50 probes at 5 ms), bounded at 30 s.
+    const std::filesystem::path checkpointFile = server::CheckpointFilePath(data, nameA);
+    int64_t checkpointed = 0;
+    for (auto start = steady_clock::now(); checkpointed < 50 && SecondsSince(start) < 30;) {
+      auto read = server::ReadCheckpointOfAnyJob(checkpointFile);
+      if (read.ok()) checkpointed = read->DoneCount();
+      if (checkpointed < 50) std::this_thread::sleep_for(milliseconds(10));
+    }
+    ASSERT_GE(checkpointed, 50) << ReadFile(log);
+    doneAtKill = c->GetJob(nameA).value_or(running).progress().probes_done();
     server.process().Signal(SIGKILL);
     EXPECT_EQ(server.process().Wait(seconds(10)), -SIGKILL);
+    // Written atomically: the file the restarted server resumes from.
+    auto read = server::ReadCheckpointOfAnyJob(checkpointFile);
+    ASSERT_TRUE(read.ok()) << read.status();
+    checkpointedAtKill = read->DoneCount();
+    ASSERT_LT(checkpointedAtKill, probes) << "job a finished before it was killed";
   }
   auto restartStart = steady_clock::now();
   FakeServerProcess server(data, log,
@@ -109,9 +126,8 @@ TEST(ServerProcess, SigkillMidBakeThenRestartCompletesOnceWithTheSameBits) {
   double completeSeconds = SecondsSince(restartStart);
   EXPECT_EQ(finalA->state(), v1::BakeJob::SUCCEEDED) << finalA->DebugString();
   EXPECT_EQ(finalA->attempts(), 2);
-  // It resumed from a checkpoint taken before the kill (on a progress tick: every 0.25 s).
-  EXPECT_GT(finalA->progress().probes_resumed(), 0);
-  EXPECT_LE(finalA->progress().probes_resumed(), doneAtKill);
+  // It resumed from the checkpoint left by the kill.
+  EXPECT_EQ(finalA->progress().probes_resumed(), checkpointedAtKill);
   auto finalB = c->Watch(nameB, [](const v1::BakeJob&) {});
   ASSERT_TRUE(finalB.ok());
   EXPECT_EQ(finalB->state(), v1::BakeJob::SUCCEEDED);
@@ -135,10 +151,10 @@ TEST(ServerProcess, SigkillMidBakeThenRestartCompletesOnceWithTheSameBits) {
   EXPECT_EQ(freshFinal->result().stats().samples(), probes * 16);
   EXPECT_EQ(FakeVolumeStats(resumedBytes).samples, probes * 16);
   std::printf(
-      "killed at %lld/%d probes; restart serving after %.3f s; resumed %lld probes; "
-      "job done %.3f s after restart\n",
-      (long long)doneAtKill, probes, servingSeconds, (long long)finalA->progress().probes_resumed(),
-      completeSeconds);
+      "killed at %lld/%d probes (progress), %lld in the checkpoint; restart serving after "
+      "%.3f s; resumed %lld probes; job done %.3f s after restart\n",
+      (long long)doneAtKill, probes, (long long)checkpointedAtKill, servingSeconds,
+      (long long)finalA->progress().probes_resumed(), completeSeconds);
   server.process().Signal(SIGTERM);
   EXPECT_EQ(server.process().Wait(seconds(10)), 0);
 }

@@ -632,7 +632,9 @@ TEST(Service, AWatcherThatGoesAwayFromAQueuedJobIsReleasedAtOnce) {
   TestServerOptions options;
   options.probeDelay = std::chrono::milliseconds(20);
   TestServer s(options);
-  v1::BakeJob running = s.Create(SmallJob(200, 1));
+  // 1000 probes x 20 ms: the running job outlasts the wait below by far (it is cancelled at the
+  // end), so the queued job cannot start and release its watchers by changing state.
+  v1::BakeJob running = s.Create(SmallJob(1000, 1));
   v1::BakeJob queued = s.Create(SmallJob(10, 2));
   {
     auto context = s.Context();
@@ -647,13 +649,20 @@ TEST(Service, AWatcherThatGoesAwayFromAQueuedJobIsReleasedAtOnce) {
     context->TryCancel();  // the client goes away; the queued job does not change meanwhile
     EXPECT_EQ(reader->Finish().error_code(), grpc::StatusCode::CANCELLED);
   }
-  // Released once gRPC reports the cancellation (OnCancel, OnDone): poll for up to 2 s.
+  // Released once gRPC has run the call's reactions (OnCancel and the first write's OnWriteDone,
+  // in either order, then OnDone) on its executor: milliseconds when idle. The bound is generous
+  // for a loaded machine, and far below the running job's 20 s, so a release can only come from
+  // the cancellation, never from a change of the queued job. (Before the fix, an OnCancel run
+  // before that OnWriteDone was lost and the stream held until the job's next change.)
+  auto start = std::chrono::steady_clock::now();
   int count = -1;
-  for (int i = 0; i < 200 && count != 0; ++i) {
+  while (count != 0 && SecondsSince(start) < 10) {
     count = s.server().jobs().WatcherCount(queued.name());
     if (count != 0) std::this_thread::sleep_for(std::chrono::milliseconds(10));
   }
-  EXPECT_EQ(count, 0) << "the watch stream of a client that left is still held";
+  EXPECT_EQ(count, 0) << "the watch stream of a client that left is still held after "
+                      << SecondsSince(start) << " s";
+  EXPECT_EQ(s.Get(running.name()).state(), v1::BakeJob::RUNNING);
   EXPECT_EQ(s.Get(queued.name()).state(), v1::BakeJob::QUEUED);  // it never changed
   EXPECT_EQ(s.server().jobs().PruneWatchers(), 1);               // the expired entry, dropped
   v1::CancelBakeJobRequest cancel;
@@ -674,9 +683,17 @@ TEST(Service, RunsUpToMaxConcurrentJobsAtOnce) {
   for (int i = 0; i < 3; ++i) jobs.push_back(s.Create(SmallJob(40, uint64_t(50 + i))));
   int most = 0;
   for (int poll = 0; poll < 300; ++poll) {
+    // One ListBakeJobs call, answered under the manager's lock, is a snapshot: three GetBakeJob
+    // calls in a row are not (on a loaded machine the first can see a job still RUNNING and the
+    // third, a moment later, the job that took its place).
+    v1::ListBakeJobsRequest request;
+    request.set_page_size(10);
+    v1::ListBakeJobsResponse list;
+    auto context = s.Context();
+    ASSERT_TRUE(s.Jobs()->ListBakeJobs(context.get(), request, &list).ok());
+    ASSERT_EQ(list.bake_jobs_size(), 3);
     int running = 0, final = 0;
-    for (const v1::BakeJob& job : jobs) {
-      v1::BakeJob now = s.Get(job.name());
+    for (const v1::BakeJob& now : list.bake_jobs()) {
       running += now.state() == v1::BakeJob::RUNNING;
       final += now.state() == v1::BakeJob::SUCCEEDED;
     }
