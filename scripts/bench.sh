@@ -2,7 +2,8 @@
 # Regenerates the accuracy and speed benchmark (SPEC 7, tests/bench/README.md): installs the
 # dependencies, builds probebake-bench into $BUILD_DIR (default build/) and runs it. The full run
 # writes tests/bench/results/ (results.md, results.csv, results.json, adaptive_probes.csv,
-# error_vs_time_<scene>.svg) in about 20 minutes on a 2-core machine the first time, less once the
+# error_vs_time_<scene>.svg) in about 5 minutes on an idle 2-core machine (297 s on 2026-12-01,
+# references included; a loaded machine takes several times that), less once the
 # reference bakes are cached (${XDG_CACHE_HOME:-~/.cache}/probebake-bench, keyed by job digest).
 #
 #   scripts/bench.sh            # full run
