@@ -38,14 +38,6 @@ constexpr uint64_t kValidityStream = ~uint64_t{0};
 // too noisy an estimate of the standard error.
 constexpr int kMinAdaptiveBatches = 8;
 
-}  // namespace
-
-double AdaptiveErrorBound(double relError, int batches) {
-  return relError * (1 + kAdaptiveSigmas / std::sqrt(2.0 * std::max(1, batches - 1)));
-}
-
-namespace {
-
 double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
 }
@@ -361,6 +353,10 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
 }
 
 }  // namespace
+
+double AdaptiveErrorBound(double relError, int batches) {
+  return relError * (1 + kAdaptiveSigmas / std::sqrt(2.0 * std::max(1, batches - 1)));
+}
 
 absl::StatusOr<ProbeVolume> Bake(const BakeJob& job, const BakeOptions& options) {
   PB_RETURN_IF_ERROR(CheckSettings(job));

@@ -79,6 +79,13 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer)
       // Orthogonal edges (to rounding): sampled by solid angle.
       l.rectangular =
           std::abs(Dot(r->edge1, r->edge2)) <= 1e-12 * Length(r->edge1) * Length(r->edge2);
+      l.corners[0] = l.position;
+      l.corners[1] = l.position + l.edge1;
+      l.corners[2] = l.position + l.edge1 + l.edge2;
+      l.corners[3] = l.position + l.edge2;
+      l.centre = l.position + (l.edge1 + l.edge2) * 0.5;
+      for (const Vec3d& q : l.corners)
+        l.vertexScale = std::max(l.vertexScale, MaxComponent(Abs(q)));
     } else if (const auto* k = std::get_if<DiskLight>(&light)) {
       l.kind = Kind::kDisk;
       l.position = k->center - offset;
@@ -87,22 +94,13 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer)
       l.area = kPi * k->radius * k->radius;
       l.radiance = k->radiance;
       l.twoSided = k->twoSided;
+      l.vertexScale = MaxComponent(Abs(l.position)) + l.radius;
     } else if (const auto* sp = std::get_if<SphereLight>(&light)) {
       l.kind = Kind::kSphere;
       l.position = sp->center - offset;
       l.radius = sp->radius;
       l.area = 4 * kPi * sp->radius * sp->radius;
       l.radiance = sp->radiance;
-    }
-    if (l.kind == Kind::kRect) {
-      l.corners[0] = l.position;
-      l.corners[1] = l.position + l.edge1;
-      l.corners[2] = l.position + l.edge1 + l.edge2;
-      l.corners[3] = l.position + l.edge2;
-      l.centre = l.position + (l.edge1 + l.edge2) * 0.5;
-      for (const Vec3d& q : l.corners)
-        l.vertexScale = std::max(l.vertexScale, MaxComponent(Abs(q)));
-    } else if (l.kind == Kind::kDisk || l.kind == Kind::kSphere) {
       l.vertexScale = MaxComponent(Abs(l.position)) + l.radius;
     }
     l.power = Luminance(l.radiance);
@@ -139,6 +137,7 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer)
     if (!(l.area > 0)) continue;
     l.position = (l.boundsMin + l.boundsMax) * 0.5;
     l.radius = 0.5 * Length(l.boundsMax - l.boundsMin);
+    l.vertexScale = std::max(MaxComponent(Abs(l.boundsMin)), MaxComponent(Abs(l.boundsMax)));
     meshLight_[m] = uint32_t(lights_.size());
     triangleDistribution_.resize(lights_.size() + 1);
     triangleDistribution_.back() = std::make_unique<DiscreteDistribution>(areas);
@@ -388,7 +387,7 @@ bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, con
       if (cosLight <= 0) return false;  // emissive triangles emit from their front side only
       s->distance = d;
       s->point = q;
-      s->vertexScale = std::max({MaxComponent(Abs(a)), MaxComponent(Abs(b)), MaxComponent(Abs(c))});
+      s->vertexScale = l.vertexScale;
       s->radiance = l.radiance;
       // pmf(t) = area_t / area; uniform on t: 1 / area_t; together 1 / area.
       s->pdf = d2 / (l.area * cosLight);

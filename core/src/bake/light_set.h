@@ -113,7 +113,7 @@ class LightSet {
     Vec3d corners[4];                    // rect: position, +edge1, +edge1+edge2, +edge2
     Vec3d centre;                        // rect
     double radius = 0;                   // disk, sphere; mesh: bounding radius
-    double vertexScale = 0;              // rect, disk, sphere: LightSample::vertexScale
+    double vertexScale = 0;              // rect, disk, sphere, mesh: LightSample::vertexScale
     double area = 0;                     // rect, disk, mesh (total)
     double cosInner = 1, cosOuter = 0;   // spot; sun: cosOuter = cos of the angular radius
     double oneMinusCos = 0;              // sun: 1 - cos(angular radius), without cancellation

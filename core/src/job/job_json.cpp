@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "errors.h"
+#include "probebake/base/utf8.h"
 #include "text.h"
 
 namespace probebake {
@@ -54,31 +55,6 @@ struct JsonFault {
   bool overflow = false;  // kNonFinite: a numeral beyond the range of a double (not NaN etc.)
 };
 
-// Length of the longest prefix of `s` that is well-formed UTF-8 (protobuf parses no further).
-size_t ValidUtf8Prefix(std::string_view s) {
-  size_t i = 0;
-  while (i < s.size()) {
-    const unsigned char c = s[i];
-    size_t n = 0;
-    if (c < 0x80) {
-      n = 1;
-    } else if (c >= 0xC2 && c <= 0xDF) {
-      n = 2;
-    } else if (c >= 0xE0 && c <= 0xEF) {
-      n = 3;
-    } else if (c >= 0xF0 && c <= 0xF4) {
-      n = 4;
-    } else {
-      return i;
-    }
-    if (i + n > s.size()) return i;
-    for (size_t k = 1; k < n; ++k)
-      if ((static_cast<unsigned char>(s[i + k]) & 0xC0) != 0x80) return i;
-    i += n;
-  }
-  return i;
-}
-
 class FaultLocator {
  public:
   explicit FaultLocator(std::string_view text) : s_(text) {}
@@ -87,7 +63,7 @@ class FaultLocator {
     // protobuf parses the well-formed UTF-8 prefix only: its error is at the end of it, if not
     // before.
     const size_t size = s_.size();
-    s_ = s_.substr(0, ValidUtf8Prefix(s_));
+    s_ = s_.substr(0, ValidUtf8PrefixLength(s_));
     SkipSpace();
     if (Value("", 0)) {
       SkipSpace();
