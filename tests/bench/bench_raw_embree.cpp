@@ -199,6 +199,32 @@ uint64_t IntersectN(RTCScene scene, bool coherent, const std::vector<Ray>& rays,
   return sum;
 }
 
+// Occlusion packets of 8 consecutive rays (begin and end multiples of 8), incoherent.
+uint64_t Occluded8(RTCScene scene, const std::vector<Ray>& rays, size_t begin, size_t end) {
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  alignas(32) int valid[8];
+  std::fill(valid, valid + 8, -1);
+  uint64_t sum = 0;
+  for (size_t i = begin; i + 8 <= end; i += 8) {
+    alignas(32) RTCRay8 ray;
+    for (int k = 0; k < 8; ++k) {
+      const Ray& r = rays[i + k];
+      ray.org_x[k] = r.origin.x, ray.org_y[k] = r.origin.y, ray.org_z[k] = r.origin.z;
+      ray.tnear[k] = 0;
+      ray.dir_x[k] = r.dir.x, ray.dir_y[k] = r.dir.y, ray.dir_z[k] = r.dir.z;
+      ray.time[k] = 0;
+      ray.tfar[k] = r.tfar;
+      ray.mask[k] = 0xFFFFFFFFu;
+      ray.id[k] = 0;
+      ray.flags[k] = 0;
+    }
+    rtcOccluded8(valid, scene, &context, &ray);
+    for (int k = 0; k < 8; ++k) sum += ray.tfar[k] < 0 ? 1 : 0;
+  }
+  return sum;
+}
+
 std::atomic<uint64_t> g_sink{0};
 
 // Runs `trace` over `rays` split into `threads` slices (aligned to `align` rays), `passes` times.
@@ -404,7 +430,12 @@ absl::StatusOr<RawEmbreeResult> MeasureRawEmbree(const BakeJob& job,
       add("probe tiled", "rtcIntersect" + std::to_string(n), packets(true, n), tiled, 16);
     }
     add("bounce", "rtcIntersect1", i1, bounce, 16);
+    add("bounce", "rtcIntersect8", packets(false, 8), bounce, 16);
     add("shadow", "rtcOccluded1", o1, shadow, 16);
+    add(
+        "shadow", "rtcOccluded8",
+        [&](const std::vector<Ray>& r, size_t b, size_t e) { return Occluded8(scene, r, b, e); },
+        shadow, 16);
   }
   return result;
 }

@@ -9,10 +9,12 @@
 //    rtcIntersect4/8/16 (4 and 8 native on AVX2, 16 emulated); packets of tiled rays are traced
 //    with the coherent context flag;
 //  - bounce rays: from the first hits of the random probe rays, cosine-distributed about the
-//    surface normal (what a path's continuation rays look like), rtcIntersect1;
+//    surface normal (what a path's continuation rays look like), rtcIntersect1 and rtcIntersect8;
 //  - shadow rays: from the same hit points, alternately to a random point on the scene's first
 //    finite area light and toward a distant light (the sun's direction, else a cosine direction),
-//    rtcOccluded1.
+//    rtcOccluded1 and rtcOccluded8.
+// The packet rates of bounce and shadow rays are the ceiling of a wavefront tracer that traces
+// its paths' incoherent rays 8 at a time.
 // Each measurement splits the rays over `threads` threads and repeats whole passes for at least
 // `minSeconds`; rates are medians over repeats, per wall second and per CPU second (the latter is
 // robust to other work on the machine).
