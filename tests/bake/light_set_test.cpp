@@ -39,8 +39,7 @@ Scene ManyLights() {
 
 TEST(LightSet, SampledPdfEqualsThePdfOfTheRayThatFindsTheLight) {
   const Scene scene = ManyLights();
-  ProbeGrid grid;
-  auto tracer = TracerScene::Build(scene, LocalOrigin(scene, grid));
+  auto tracer = TracerScene::Build(scene, LocalOrigin(scene));
   ASSERT_TRUE(tracer.ok()) << tracer.status();
   const LightSet lights(scene, **tracer);
   std::vector<double> importance(lights.Count());

@@ -297,7 +297,7 @@ absl::StatusOr<RawEmbreeResult> MeasureRawEmbree(const BakeJob& job,
                                                  double minSeconds, int repeats, int maxThreads) {
   RawEmbreeResult result;
   result.probes = int64_t(probes.size());
-  const Vec3d offset = LocalOrigin(job.scene, job.grid);
+  const Vec3d offset = LocalOrigin(job.scene);
   EmbreeScene embree;
   const double buildStart = WallSeconds();
   PB_RETURN_IF_ERROR(embree.Build(job.scene, offset, &result.triangles));

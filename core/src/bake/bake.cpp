@@ -15,6 +15,7 @@
 
 #include "probe_finish.h"
 #include "probe_integrator.h"
+#include "probe_site.h"
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
 #include "probebake/sampling/hash.h"
@@ -174,7 +175,8 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   const int64_t probeCount = grid.ProbeCount();
   const int coeffs = ShCoeffCount(settings.shOrder);
 
-  const Vec3d offset = LocalOrigin(job.scene, grid);
+  const Vec3d offset = LocalOrigin(job.scene);
+  const ProbeSites sites(job.scene, offset);
   PB_ASSIGN_OR_RETURN(std::unique_ptr<TracerScene> tracer, TracerScene::Build(job.scene, offset));
   const LightSet lights(job.scene, *tracer);
   const ProbeIntegrator integrator(job.scene, *tracer, lights, settings);
@@ -199,10 +201,12 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   if (options.coefficientErrors)
     volume.radianceStdError.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
 
-  auto localPosition = [&](int64_t probe) {
+  // Where probe `probe` is traced from (local coordinates) and its stream key: from its world
+  // position alone, so sub-grids bake their probes as the whole grid does (probe_site.h).
+  auto siteOf = [&](int64_t probe) {
     int i, j, k;
     grid.Coords(probe, &i, &j, &k);
-    return grid.Position(i, j, k) - offset;
+    return sites.At(grid.Position(i, j, k));
   };
 
   // Placement and validity: which probes are inside geometry, which are near a surface.
@@ -212,9 +216,10 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
       [&](const tbb::blocked_range<int64_t>& range) {
         int64_t rays = 0;
         for (int64_t probe = range.begin(); probe != range.end(); ++probe) {
-          const Vec3d p = localPosition(probe);
+          const ProbeSite site = siteOf(probe);
+          const Vec3d p = site.local;
           const Vec3f origin(p);
-          SobolSampler sampler(settings.seed, Hash(uint64_t(probe), kValidityStream));
+          SobolSampler sampler(settings.seed, Hash(site.key, kValidityStream));
           int backfaces = 0;
           for (int r = 0; r < kValidityRays; ++r) {
             sampler.StartSample(uint64_t(r));
@@ -278,7 +283,8 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
         for (size_t t = range.begin(); t != range.end(); ++t) {
           if (isCancelled()) return;
           const int64_t probe = todo[t];
-          const Vec3d p = localPosition(probe);
+          const ProbeSite site = siteOf(probe);
+          const Vec3d p = site.local;
           ProbeEstimate estimate(coeffs, maxBatches);
 
           // Delta lights project exactly (SPEC 3): c_i += (I / d^2) V Y_i(w), once per probe.
@@ -302,7 +308,7 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
                           : std::min(maxBatches, next == 0 ? kMinAdaptiveBatches : next + 2);
             tbb::parallel_for(next, roundEnd, [&](int b) {
               const int64_t n = BatchSize(settings.samplesPerProbe, maxBatches, b);
-              if (!integrator.TraceBatch(p, uint64_t(probe), uint32_t(b), n, estimate.BatchSum(b),
+              if (!integrator.TraceBatch(p, site.key, uint32_t(b), n, estimate.BatchSum(b),
                                          &counters, cancel)) {
                 cancelled.store(true, std::memory_order_relaxed);
               }

@@ -89,28 +89,29 @@ Vec3d ProbeIntegrator::ShadowTransmittance(const Vec3f& origin, const LightSampl
   return medium_ ? Shadow<true>(origin, s, counters) : Shadow<false>(origin, s, counters);
 }
 
-bool ProbeIntegrator::TraceBatch(const Vec3d& p, uint64_t probe, uint32_t batch, int64_t count,
+bool ProbeIntegrator::TraceBatch(const Vec3d& p, uint64_t probeKey, uint32_t batch, int64_t count,
                                  std::span<double> sum, SharedCounters* shared,
                                  const std::atomic<bool>* cancel) const {
   const bool sobol = settings_.sampler == SamplerKind::kSobol;
   if (medium_) {
-    return sobol ? TraceBatchWith<true, SobolSampler>(p, probe, batch, count, sum, shared, cancel)
-                 : TraceBatchWith<true, IndependentSampler>(p, probe, batch, count, sum, shared,
-                                                            cancel);
+    return sobol
+               ? TraceBatchWith<true, SobolSampler>(p, probeKey, batch, count, sum, shared, cancel)
+               : TraceBatchWith<true, IndependentSampler>(p, probeKey, batch, count, sum, shared,
+                                                          cancel);
   }
-  return sobol ? TraceBatchWith<false, SobolSampler>(p, probe, batch, count, sum, shared, cancel)
-               : TraceBatchWith<false, IndependentSampler>(p, probe, batch, count, sum, shared,
+  return sobol ? TraceBatchWith<false, SobolSampler>(p, probeKey, batch, count, sum, shared, cancel)
+               : TraceBatchWith<false, IndependentSampler>(p, probeKey, batch, count, sum, shared,
                                                            cancel);
 }
 
 template <bool kMedium, typename S>
-bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probe, uint32_t batch, int64_t count,
-                                     std::span<double> sum, SharedCounters* shared,
+bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t batch,
+                                     int64_t count, std::span<double> sum, SharedCounters* shared,
                                      const std::atomic<bool>* cancel) const {
   TraceCounters local;
   const int order = settings_.shOrder;
   const Vec3f origin(p);
-  S sampler(settings_.seed, Hash(probe, uint64_t(batch)));
+  S sampler(settings_.seed, Hash(probeKey, uint64_t(batch)));
   std::vector<double> importanceProbe(lights_.Count()), scratchA(lights_.Count()),
       scratchB(lights_.Count());
   const double totalProbe = lights_.Importance(p, nullptr, /*includeDelta=*/false, importanceProbe);

@@ -62,10 +62,11 @@ class ProbeIntegrator {
                   const BakeSettings& settings);
 
   // Adds to `sum` ((shOrder+1)^2 x 3 doubles, coefficient-major RGB) the contributions of samples
-  // [0, count) of the random stream (seed, Hash(probe, batch)) for the probe at local position p.
+  // [0, count) of the random stream (seed, Hash(probeKey, batch)) for the probe at local position
+  // p (probeKey: ProbeSite::key, probe_site.h).
   // Adds the work done to `shared` every few hundred samples. Returns false if `cancel` was
   // raised (the partial sum is then meaningless).
-  bool TraceBatch(const Vec3d& p, uint64_t probe, uint32_t batch, int64_t count,
+  bool TraceBatch(const Vec3d& p, uint64_t probeKey, uint32_t batch, int64_t count,
                   std::span<double> sum, SharedCounters* shared,
                   const std::atomic<bool>* cancel) const;
 
@@ -76,7 +77,7 @@ class ProbeIntegrator {
 
  private:
   template <bool kMedium, typename S>
-  bool TraceBatchWith(const Vec3d& p, uint64_t probe, uint32_t batch, int64_t count,
+  bool TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t batch, int64_t count,
                       std::span<double> sum, SharedCounters* shared,
                       const std::atomic<bool>* cancel) const;
   template <bool kMedium, typename S>

@@ -116,7 +116,7 @@ struct TracerScene::Impl {
 
 TracerScene::~TracerScene() = default;
 
-Vec3d LocalOrigin(const Scene& scene, const ProbeGrid& grid) {
+bool FiniteSceneBounds(const Scene& scene, Vec3d* boundsMin, Vec3d* boundsMax) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   Vec3d lo{kInf, kInf, kInf}, hi{-kInf, -kInf, -kInf};
   auto add = [&](const Vec3d& p) {
@@ -139,8 +139,15 @@ Vec3d LocalOrigin(const Scene& scene, const ProbeGrid& grid) {
       add(sl->position);
     }
   }
-  add(grid.origin);
-  add(grid.Position(grid.counts[0] - 1, grid.counts[1] - 1, grid.counts[2] - 1));
+  *boundsMin = lo;
+  *boundsMax = hi;
+  return lo.x <= hi.x;
+}
+
+Vec3d LocalOrigin(const Scene& scene) {
+  Vec3d lo, hi;
+  // Nothing finite: no surface to leave without self-intersection, so any origin will do.
+  if (!FiniteSceneBounds(scene, &lo, &hi)) return {};
   return (lo + hi) * 0.5;
 }
 

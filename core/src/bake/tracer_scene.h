@@ -75,8 +75,13 @@ class TracerScene {
   std::vector<const uint32_t*> meshIndices_;
 };
 
-// The centre of the bounds of everything finite in the scene (meshes, finite lights) and the probe
-// grid: the origin of the tracer's local coordinates.
-Vec3d LocalOrigin(const Scene& scene, const ProbeGrid& grid);
+// The centre of the bounds of everything finite in the scene (meshes, finite lights), or the world
+// origin when there is nothing finite: the origin of the tracer's local coordinates. It depends on
+// the scene alone, not on the probe grid, so a sub-grid bakes in the same coordinates as the whole
+// grid (probe_site.h).
+Vec3d LocalOrigin(const Scene& scene);
+// World bounds of everything finite in the scene (meshes, finite lights, point and spot lights);
+// false when there is nothing finite.
+bool FiniteSceneBounds(const Scene& scene, Vec3d* boundsMin, Vec3d* boundsMax);
 
 }  // namespace probebake

@@ -4,10 +4,11 @@
 //
 // Contract (both samplers):
 //   - A sampler is built from (seed, stream); the caller derives stream by hashing, e.g.
-//     Hash(probeIndex, batchIndex). StartSample(index) selects the sample within the stream and
-//     resets the dimension counter; each Get1D() or Get2D() call then consumes one dimension
-//     (set). The value returned depends only on (seed, stream, index, dimension, kind of call):
-//     never on call history, other streams, threads or time. Copies are independent.
+//     Hash(probeKey, batchIndex) with the probe's position key (core/src/bake/probe_site.h).
+//     StartSample(index) selects the sample within the stream and resets the dimension counter;
+//     each Get1D() or Get2D() call then consumes one dimension (set). The value returned depends
+//     only on (seed, stream, index, dimension, kind of call): never on call history, other streams,
+//     threads or time. Copies are independent.
 //   - Values are k * 2^-32 for an integer k in [0, 2^32), so they lie in [0, 1) exactly
 //     (1 - 2^-32 is the largest). float(u) rounds to 1.0f for u > 1 - 2^-25, so clamp when
 //     converting: std::min(float(u), 0x1.fffffep-1f).
