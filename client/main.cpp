@@ -33,6 +33,7 @@
 #include "probebake/volume/irradiance_slice.h"
 #include "probebake/volume/vdb_io.h"
 #include "probebake/volume/volume_inspect.h"
+#include "probebake/volume/volume_merge.h"
 #include "server/bake_backend.h"
 #include "server/file_util.h"
 #include "server/job_state.h"
@@ -181,6 +182,29 @@ int RunInspect(const std::string& path, bool json, const std::string& slice,
     std::printf("%s\n", VolumeReportJson(*report).c_str());
   else
     std::printf("%s", FormatVolumeReport(*report).c_str());
+  return kExitOk;
+}
+
+// ---- merge ----
+
+// Merges the volumes of a sharded bake (volume_merge.h) into `out`.
+int RunMerge(const std::vector<std::string>& inputs, const std::string& out) {
+  std::vector<VolumePart> parts;
+  for (const std::string& input : inputs) {
+    absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(input);
+    if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+    parts.push_back({input, std::move(*file)});
+  }
+  absl::StatusOr<ProbeVolumeFile> merged = MergeProbeVolumes(std::move(parts));
+  if (!merged.ok()) return Fail(kExitUsage, std::string(merged.status().message()));
+  const int64_t probes =
+      std::count(merged->volume.active.begin(), merged->volume.active.end(), uint8_t{1});
+  const ProbeGrid& g = merged->volume.grid;
+  if (absl::Status written = WriteProbeVolume(out, std::move(merged->volume), merged->meta);
+      !written.ok())
+    return Fail(kExitUsage, std::string(written.message()));
+  std::fprintf(stderr, "wrote %s: %lld probes from %zu volumes, grid %d x %d x %d\n", out.c_str(),
+               (long long)probes, inputs.size(), g.counts[0], g.counts[1], g.counts[2]);
   return kExitOk;
 }
 
@@ -341,6 +365,12 @@ int Main(int argc, char** argv) {
   inspect->add_option("--slice", slice, "AXIS=VALUE: render an irradiance slice to -o PNG");
   inspect->add_option("-o,--output", out, "PNG for --slice");
 
+  std::vector<std::string> parts;
+  CLI::App* merge =
+      app.add_subcommand("merge", "Merge the volumes of sub-grids of one grid (a sharded bake)");
+  merge->add_option("volumes", parts, "Probe volumes (.vdb) baked from sub-grids")->required();
+  merge->add_option("-o,--output", out, "Merged probe volume to write (.vdb)")->required();
+
   CLI::App* submit = app.add_subcommand("submit", "Upload JOB.json's files and queue the bake");
   submit->add_option("job", jobPath, "Job file (SPEC 4a)")->required();
   submit->add_flag("--wait", wait, "Watch the job until it ends");
@@ -376,6 +406,7 @@ int Main(int argc, char** argv) {
 
   if (*bake) return RunBake(jobPath, out, threads, json);
   if (*inspect) return RunInspect(path, json, slice, out);
+  if (*merge) return RunMerge(parts, out);
   if (*submit) return RunSubmit(flags, jobPath, wait, out, skipCache, requestId);
   if (*watch) return RunWatch(flags, name);
   if (*status) return RunStatus(flags, name);

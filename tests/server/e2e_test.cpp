@@ -171,6 +171,52 @@ TEST(EndToEnd, ServerBakeIsBitIdenticalToLocalBake) {
   EXPECT_EQ(server.process().Wait(seconds(10)), 0);
 }
 
+TEST(EndToEnd, AGridShardedAcrossALocalBakeAndAServerMergesIntoTheWholeBake) {
+  // SPEC 3: the sharding of a grid across machines does not change a result. The whole 3x3x2
+  // grid baked locally; its z = 0.5 layer baked locally too, its z = 2.5 layer on the server;
+  // `probebake merge` of the two gives the whole volume, bit for bit.
+  TempDir dir;
+  auto whole = WriteJob(dir.path(), "whole.json", 3, 3, 2, 64);
+  const std::string json = ReadFile(whole);
+  auto writeLayer = [&](const std::string& name, const std::string& z) {
+    std::string layer = json;
+    const std::string from = R"("min": [-2, -2, 0.5], "max": [2, 2, 2.5], "counts": [3, 3, 2])";
+    const size_t at = layer.find(from);
+    EXPECT_NE(at, std::string::npos) << layer;
+    if (at != std::string::npos)
+      layer.replace(
+          at, from.size(),
+          "\"min\": [-2, -2, " + z + "], \"max\": [2, 2, " + z + "], \"counts\": [3, 3, 1]");
+    std::ofstream(dir.path() / name) << layer;
+    return (dir.path() / name).string();
+  };
+  const std::string low = writeLayer("low.json", "0.5"), high = writeLayer("high.json", "2.5");
+  const std::string wholeVdb = (dir.path() / "whole.vdb").string(),
+                    lowVdb = (dir.path() / "low.vdb").string(),
+                    highVdb = (dir.path() / "high.vdb").string(),
+                    merged = (dir.path() / "merged.vdb").string();
+  ASSERT_EQ(Cli({"bake", whole.string(), "-o", wholeVdb}).exitCode, 0);
+  ASSERT_EQ(Cli({"bake", low, "-o", lowVdb}).exitCode, 0);
+  ServerProcess server(dir.path(), {"--threads", "1"});
+  RunResult submit = Cli({"submit", high, "--server", server.address(), "-o", highVdb});
+  ASSERT_EQ(submit.exitCode, 0) << submit.err << server.log();
+
+  RunResult merge = Cli({"merge", "-o", merged, highVdb, lowVdb});
+  ASSERT_EQ(merge.exitCode, 0) << merge.err;
+  ExpectSameVolume(wholeVdb, merged);
+
+  // Parts of different bakes are refused, the part and the field named.
+  auto reseeded = WriteJob(dir.path(), "reseeded.json", 3, 3, 2, 64, /*seed=*/8);
+  const std::string reseededVdb = (dir.path() / "reseeded.vdb").string();
+  ASSERT_EQ(Cli({"bake", reseeded.string(), "-o", reseededVdb}).exitCode, 0);
+  RunResult mixed = Cli({"merge", "-o", (dir.path() / "mixed.vdb").string(), lowVdb, reseededVdb});
+  EXPECT_EQ(mixed.exitCode, 2);
+  EXPECT_NE(mixed.err.find("part 1 (" + reseededVdb + "): seed"), std::string::npos) << mixed.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "mixed.vdb"));
+  server.process().Signal(SIGTERM);
+  EXPECT_EQ(server.process().Wait(seconds(10)), 0);
+}
+
 TEST(EndToEnd, CliExitCodes) {
   TempDir dir;
   auto job = WriteJob(dir.path(), "job.json", 2, 2, 1, 16);

@@ -66,10 +66,6 @@ class ProbeFinisher {
   ShBandWindow window_;  // HANNING, LANCZOS: fixed; AUTO: chosen per probe
 };
 
-// sh_window metadata for AUTO: "AUTO(heat exp(-t l(l+1)) per probe; <n> of <m> probes windowed,
-// max t=<t>)".
-std::string AutoWindowSummary(int64_t windowed, int64_t probes, double maxT);
-
 // A volume with the layout of `v` (grid, order, active mask, validity, window, planes) whose
 // per-probe values are all zero.
 ProbeVolume EmptyLike(const ProbeVolume& v);

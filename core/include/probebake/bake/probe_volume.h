@@ -47,6 +47,10 @@ struct ProbeVolume {
   int CoeffCount() const { return (shOrder + 1) * (shOrder + 1); }
 };
 
+// ProbeVolume::window for the AUTO window: "AUTO(heat exp(-t l(l+1)) per probe; <n> of <m> probes
+// windowed, max t=<t>)".
+std::string AutoWindowSummary(int64_t windowed, int64_t probes, double maxT);
+
 // Metadata recorded with a volume (SPEC 5) besides what ProbeVolume holds.
 struct VolumeMetadata {
   int64_t samplesPerProbe = 0;
