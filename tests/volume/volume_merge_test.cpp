@@ -154,6 +154,15 @@ TEST(VolumeMerge, RefusesPartsThatDoNotBelongTogether) {
   EXPECT_NE(std::string(bad.status().message()).find("with different values"), std::string::npos)
       << bad.status();
   EXPECT_FALSE(MergeProbeVolumes({}).ok());
+
+  // Two small parts a million steps apart would make a dense grid of millions of empty probes.
+  std::vector<VolumePart> apart = ReadParts({dir.File("a.vdb"), dir.File("b.vdb")});
+  ASSERT_EQ(apart.size(), 2u);
+  apart[1].file.volume.grid.origin.x += 0.8 * 1e6;
+  const absl::StatusOr<ProbeVolumeFile> sparse = MergeProbeVolumes(std::move(apart));
+  ASSERT_FALSE(sparse.ok());
+  EXPECT_NE(std::string(sparse.status().message()).find("bounding box"), std::string::npos)
+      << sparse.status();
 }
 
 }  // namespace

@@ -110,6 +110,14 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
     out.grid.counts[a] = int(count);
   }
   const int64_t probeCount = out.grid.ProbeCount();
+  // The merged volume is dense over the parts' bounding box: parts far apart would allocate a
+  // grid mostly empty (and possibly past memory). Sub-grids of one grid tile it.
+  int64_t partProbes = 0;
+  for (const VolumePart& part : parts) partProbes += part.file.volume.grid.ProbeCount();
+  if (probeCount > 2 * partProbes + (int64_t(1) << 20))
+    return absl::InvalidArgumentError(
+        absl::StrCat("the parts hold ", partProbes, " probes but their bounding box ", probeCount,
+                     ": they are not sub-grids tiling one grid (or far apart on its lattice)"));
   const int coeffs = first.CoeffCount();
   out.shOrder = first.shOrder;
   out.window = first.window;
@@ -133,7 +141,7 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
       const int64_t q =
           out.grid.LinearIndex(int(x + offsets[i][0] - lo[0]), int(y + offsets[i][1] - lo[1]),
                                int(z + offsets[i][2] - lo[2]));
-      // Every value of the probe, as (destination, source) pairs.
+      // Copies every value of the probe, noting whether an earlier part left other bits there.
       bool same = true;
       auto put = [&](float& to, float from) {
         same = same && SameBits(to, from);

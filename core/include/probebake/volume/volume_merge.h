@@ -13,8 +13,9 @@
 //
 // The merged grid is the bounding box of the parts: per axis its min is the lowest part's min
 // (that part's exact double), its counts reach the highest part's last probe; probes no part
-// covers are inactive. Stats: probes, samples, rays, invalid probes and threads add up (the
-// work of every machine; a probe baked twice counts twice), wallSeconds is the longest part's
+// covers are inactive; a bounding box of more than twice the parts' probes (plus 2^20) is
+// refused as not one tiled grid. Stats: probes, samples, rays, invalid probes and threads add up
+// (the work of every machine; a probe baked twice counts twice), wallSeconds is the longest part's
 // (parts run side by side). Parts with the AUTO window must not overlap, as its summary counts
 // windowed probes.
 #pragma once
