@@ -143,7 +143,7 @@ int RunBake(const std::string& jobPath, const std::string& out, int threads, boo
                 absl::StrCat(jobPath, ": bake failed: ", std::string(volume.status().message())));
   }
   BakeStats stats = volume->stats;
-  absl::Status written = WriteProbeVolume(out, std::move(*volume), server::VolumeMetadataFor(*job));
+  absl::Status written = WriteProbeVolume(out, std::move(*volume), VolumeMetadataFor(*job));
   if (!written.ok()) return Fail(kExitUsage, std::string(written.message()));
   if (json) {
     std::printf(

@@ -36,14 +36,4 @@ absl::StatusOr<std::string> BlobAssetSource::ReadBlob(const v1::Digest& digest,
   return bytes;
 }
 
-VolumeMetadata VolumeMetadataFor(const BakeJob& job) {
-  VolumeMetadata meta;
-  meta.samplesPerProbe = job.settings.samplesPerProbe;
-  meta.maxDepth = job.settings.maxDepth;
-  meta.seed = job.settings.seed;
-  meta.sceneDigest = job.sceneDigest;
-  meta.settingsJson = job.settingsJson;
-  return meta;
-}
-
 }  // namespace probebake::server

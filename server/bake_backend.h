@@ -50,9 +50,6 @@ class BlobAssetSource final : public AssetSource {
 // The message for a `file` reference in a server request (SPEC 8).
 std::string ClientPathRefusal(const std::string& fieldPath);
 
-// The metadata a volume of `job` records (SPEC 5): the same for a local and a server bake.
-VolumeMetadata VolumeMetadataFor(const BakeJob& job);
-
 // BuildBakeJob over BlobAssetSource, probebake::Bake and WriteProbeVolume.
 BakeBackend ProductionBackend(const BlobStore* blobs, const JobLimits& limits);
 

@@ -19,6 +19,7 @@
 #include "probebake/base/status.h"
 #include "probebake/job/file_refs.h"
 #include "probebake/job/validate.h"
+#include "probebake/volume/vdb_io.h"
 #include "server/blob_store.h"
 #include "server/checkpoint.h"
 #include "server/job_store.h"

@@ -159,6 +159,19 @@ uint64_t Occluded1(RTCScene scene, const std::vector<Ray>& rays, size_t begin, s
   return sum;
 }
 
+// Lane k of a ray packet (RTCRay4/8/16), set as FillRay sets a single ray.
+template <typename RayN>
+void FillLane(const Ray& r, int k, RayN* ray) {
+  ray->org_x[k] = r.origin.x, ray->org_y[k] = r.origin.y, ray->org_z[k] = r.origin.z;
+  ray->tnear[k] = 0;
+  ray->dir_x[k] = r.dir.x, ray->dir_y[k] = r.dir.y, ray->dir_z[k] = r.dir.z;
+  ray->time[k] = 0;
+  ray->tfar[k] = r.tfar;
+  ray->mask[k] = 0xFFFFFFFFu;
+  ray->id[k] = 0;
+  ray->flags[k] = 0;
+}
+
 template <int N, typename RayHitN>
 void CallIntersect(const int* valid, RTCScene scene, RTCIntersectContext* context, RayHitN* rh) {
   if constexpr (N == 4) rtcIntersect4(valid, scene, context, rh);
@@ -180,15 +193,7 @@ uint64_t IntersectN(RTCScene scene, bool coherent, const std::vector<Ray>& rays,
   for (size_t i = begin; i + N <= end; i += N) {
     alignas(64) RayHitN rh;
     for (int k = 0; k < N; ++k) {
-      const Ray& r = rays[i + k];
-      rh.ray.org_x[k] = r.origin.x, rh.ray.org_y[k] = r.origin.y, rh.ray.org_z[k] = r.origin.z;
-      rh.ray.tnear[k] = 0;
-      rh.ray.dir_x[k] = r.dir.x, rh.ray.dir_y[k] = r.dir.y, rh.ray.dir_z[k] = r.dir.z;
-      rh.ray.time[k] = 0;
-      rh.ray.tfar[k] = r.tfar;
-      rh.ray.mask[k] = 0xFFFFFFFFu;
-      rh.ray.id[k] = 0;
-      rh.ray.flags[k] = 0;
+      FillLane(rays[i + k], k, &rh.ray);
       rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
       rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
       rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
@@ -208,17 +213,7 @@ uint64_t Occluded8(RTCScene scene, const std::vector<Ray>& rays, size_t begin, s
   uint64_t sum = 0;
   for (size_t i = begin; i + 8 <= end; i += 8) {
     alignas(32) RTCRay8 ray;
-    for (int k = 0; k < 8; ++k) {
-      const Ray& r = rays[i + k];
-      ray.org_x[k] = r.origin.x, ray.org_y[k] = r.origin.y, ray.org_z[k] = r.origin.z;
-      ray.tnear[k] = 0;
-      ray.dir_x[k] = r.dir.x, ray.dir_y[k] = r.dir.y, ray.dir_z[k] = r.dir.z;
-      ray.time[k] = 0;
-      ray.tfar[k] = r.tfar;
-      ray.mask[k] = 0xFFFFFFFFu;
-      ray.id[k] = 0;
-      ray.flags[k] = 0;
-    }
+    for (int k = 0; k < 8; ++k) FillLane(rays[i + k], k, &ray);
     rtcOccluded8(valid, scene, &context, &ray);
     for (int k = 0; k < 8; ++k) sum += ray.tfar[k] < 0 ? 1 : 0;
   }

@@ -36,22 +36,12 @@ BakeJob WholeJob() {
   return job;
 }
 
-VolumeMetadata MetadataOf(const BakeJob& job) {
-  VolumeMetadata meta;
-  meta.samplesPerProbe = job.settings.samplesPerProbe;
-  meta.maxDepth = job.settings.maxDepth;
-  meta.seed = job.settings.seed;
-  meta.sceneDigest = "digest-of-the-scene";
-  meta.settingsJson = "{\"shOrder\":2}";
-  return meta;
-}
-
 // Bakes `job` over the sub-grid (min, counts) and writes it to `path`.
 void BakePart(BakeJob job, const Vec3d& min, std::array<int, 3> counts, const std::string& path) {
   job.grid.origin = min;
   std::copy(counts.begin(), counts.end(), job.grid.counts);
   const ProbeVolume v = testing::BakeOrDie(job, 1);
-  PB_ASSERT_OK(WriteProbeVolume(path, v, MetadataOf(job)));
+  PB_ASSERT_OK(WriteProbeVolume(path, v, VolumeMetadataFor(job)));
 }
 
 std::vector<VolumePart> ReadParts(const std::vector<std::string>& paths) {

@@ -169,4 +169,14 @@ std::string IrradianceGridName(int coefficient) {
   return ShGridName("irradiance_sh_", coefficient);
 }
 
+VolumeMetadata VolumeMetadataFor(const BakeJob& job) {
+  VolumeMetadata meta;
+  meta.samplesPerProbe = job.settings.samplesPerProbe;
+  meta.maxDepth = job.settings.maxDepth;
+  meta.seed = job.settings.seed;
+  meta.sceneDigest = job.sceneDigest;
+  meta.settingsJson = job.settingsJson;
+  return meta;
+}
+
 }  // namespace probebake

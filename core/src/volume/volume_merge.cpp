@@ -92,14 +92,13 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
         lo[a] = offsets[i][a];
         lowestPart[a] = i;
       }
-      hi[a] = std::max(i == 0 ? offsets[i][a] + f.volume.grid.counts[a] - 1 : hi[a],
-                       offsets[i][a] + f.volume.grid.counts[a] - 1);
+      const int64_t last = offsets[i][a] + f.volume.grid.counts[a] - 1;
+      if (i == 0 || last > hi[a]) hi[a] = last;
     }
   }
 
   ProbeVolumeFile merged;
   merged.meta = parts[0].file.meta;
-  merged.rawMetadata = parts[0].file.rawMetadata;
   ProbeVolume& out = merged.volume;
   out.grid = first.grid;
   for (int a = 0; a < 3; ++a) {

@@ -80,6 +80,10 @@ std::string RadianceGridName(int coefficient);
 // "irradiance_sh_07" for coefficient 7; coefficient in [0, 99].
 std::string IrradianceGridName(int coefficient);
 
+// The metadata a volume of `job` records (SPEC 5): the same for a local, a server and a merged
+// bake.
+VolumeMetadata VolumeMetadataFor(const BakeJob& job);
+
 // Writes `volume` to `path` as described above. Errors: INVALID_ARGUMENT when the volume is
 // inconsistent (plane sizes, order > kMaxVolumeShOrder, non-positive spacing, stats that the
 // stats JSON cannot hold exactly), naming the field;
