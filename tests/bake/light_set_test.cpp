@@ -37,12 +37,16 @@ Scene ManyLights() {
   return scene;
 }
 
-TEST(LightSet, SampledPdfEqualsThePdfOfTheRayThatFindsTheLight) {
+// treeMinLights = 1: every finite light is chosen through a light tree.
+void ExpectSampledPdfsEqualThePdfsOfTheRaysThatFindTheLights(size_t treeMinLights) {
   const Scene scene = ManyLights();
   auto tracer = TracerScene::Build(scene, LocalOrigin(scene));
   ASSERT_TRUE(tracer.ok()) << tracer.status();
-  const LightSet lights(scene, **tracer);
-  std::vector<double> importance(lights.Count());
+  const LightSet lights(scene, **tracer, treeMinLights);
+  if (treeMinLights == 1) {
+    ASSERT_EQ(lights.TreeLightCount(), 7u);
+  }
+  std::vector<double> importance(lights.ImportanceSize());
   SobolSampler sampler(3, 4);
   int checked = 0, escapedChecked = 0;
   for (int i = 0; i < 4000; ++i) {
@@ -82,6 +86,14 @@ TEST(LightSet, SampledPdfEqualsThePdfOfTheRayThatFindsTheLight) {
   }
   EXPECT_GT(checked, 500);
   EXPECT_GT(escapedChecked, 100);
+}
+
+TEST(LightSet, SampledPdfEqualsThePdfOfTheRayThatFindsTheLight) {
+  ExpectSampledPdfsEqualThePdfsOfTheRaysThatFindTheLights(kLightTreeMinLights);
+}
+
+TEST(LightSet, SampledPdfEqualsThePdfOfTheRayThatFindsTheLightThroughLightTrees) {
+  ExpectSampledPdfsEqualThePdfsOfTheRaysThatFindTheLights(1);
 }
 
 TEST(EnvironmentLight, CellsFollowImfLatLongMap) {

@@ -181,9 +181,11 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   const LightSet lights(job.scene, *tracer);
   const ProbeIntegrator integrator(job.scene, *tracer, lights, settings);
   const ProbeFinisher finisher(settings);
-  log->info("scene ready in {:.3f} s: {} meshes, {} lights, {} probes, order {}, {} samples/probe",
-            Seconds(start), job.scene.meshes.size(), lights.Count(), probeCount, settings.shOrder,
-            settings.samplesPerProbe);
+  log->info(
+      "scene ready in {:.3f} s: {} meshes, {} lights ({} chosen through light trees), {} probes, "
+      "order {}, {} samples/probe",
+      Seconds(start), job.scene.meshes.size(), lights.Count(), lights.TreeLightCount(), probeCount,
+      settings.shOrder, settings.samplesPerProbe);
 
   ProbeVolume volume;
   volume.grid = grid;

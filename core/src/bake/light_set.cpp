@@ -33,7 +33,7 @@ bool BoxBelow(const Vec3d& lo, const Vec3d& hi, const Vec3d& p, const Vec3d& n) 
 
 }  // namespace
 
-LightSet::LightSet(const Scene& scene, const TracerScene& tracer)
+LightSet::LightSet(const Scene& scene, const TracerScene& tracer, size_t treeMinLights)
     : scene_(&scene), tracer_(&tracer) {
   const Vec3d& offset = tracer.offset();
   for (uint32_t i = 0; i < scene.lights.size(); ++i) {
@@ -154,6 +154,93 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer)
     lights_.push_back(l);
   }
   triangleDistribution_.resize(lights_.size());
+  BuildTrees(treeMinLights);
+}
+
+void LightSet::BuildTrees(size_t treeMinLights) {
+  // Tree 0: area lights (rect, disk, sphere, emissive mesh); tree 1: point and spot lights, apart
+  // because the probe leaves delta lights out of its choice (it projects them exactly).
+  std::vector<LightTree::Item> items[2];
+  for (uint32_t i = 0; i < lights_.size(); ++i) {
+    const LightData& l = lights_[i];
+    LightTree::Item it;
+    it.light = i;
+    const Vec3d r{l.radius, l.radius, l.radius};
+    switch (l.kind) {
+      case Kind::kRect:
+        it.lo = it.hi = l.corners[0];
+        for (const Vec3d& q : l.corners) it.lo = Min(it.lo, q), it.hi = Max(it.hi, q);
+        it.weight = l.power * l.area;
+        it.clamp = l.area;
+        if (!l.twoSided) it.axis = l.axis, it.thetaO = 0, it.thetaE = kPi / 2;
+        items[0].push_back(it);
+        break;
+      case Kind::kDisk:
+        it.lo = l.position - r, it.hi = l.position + r;
+        it.weight = l.power * l.area;
+        it.clamp = l.area;
+        if (!l.twoSided) it.axis = l.axis, it.thetaO = 0, it.thetaE = kPi / 2;
+        items[0].push_back(it);
+        break;
+      case Kind::kSphere:
+        it.lo = l.position - r, it.hi = l.position + r;
+        it.weight = l.power * kPi * l.radius * l.radius;
+        it.clamp = kPi * l.radius * l.radius;
+        items[0].push_back(it);
+        break;
+      case Kind::kMesh:
+        it.lo = l.boundsMin, it.hi = l.boundsMax;
+        it.weight = l.power * l.area;
+        it.clamp = l.area;
+        items[0].push_back(it);
+        break;
+      case Kind::kPoint:
+      case Kind::kSpot:
+        it.lo = it.hi = l.position;
+        it.weight = l.power;
+        it.clamp = 1e-300;
+        if (l.kind == Kind::kSpot)
+          it.axis = l.axis, it.thetaO = 0, it.thetaE = std::acos(std::clamp(l.cosOuter, -1.0, 1.0));
+        items[1].push_back(it);
+        break;
+      default:
+        break;
+    }
+  }
+  treeOfLight_.assign(lights_.size(), -1);
+  slotOfLight_.assign(lights_.size(), 0);
+  for (int t = 0; t < 2; ++t) {
+    if (items[t].empty() || items[t].size() < treeMinLights) continue;
+    for (const LightTree::Item& it : items[t]) treeOfLight_[it.light] = int(trees_.size());
+    trees_.push_back(std::make_unique<LightTree>(std::move(items[t])));
+  }
+  // Plain lights in index order, then one slot per tree.
+  for (uint32_t i = 0; i < lights_.size(); ++i) {
+    if (treeOfLight_[i] >= 0) continue;
+    const Kind k = lights_[i].kind;
+    slotOfLight_[i] = uint32_t(slots_.size());
+    slots_.push_back({i, -1, k == Kind::kPoint || k == Kind::kSpot || k == Kind::kDirectional});
+  }
+  std::vector<uint32_t> slotOfTree(trees_.size());
+  for (size_t t = 0; t < trees_.size(); ++t) {
+    slotOfTree[t] = uint32_t(slots_.size());
+    // A tree of delta lights holds point and spot lights only.
+    bool delta = false;
+    for (uint32_t i = 0; i < lights_.size(); ++i) {
+      if (treeOfLight_[i] != int(t)) continue;
+      delta = lights_[i].kind == Kind::kPoint || lights_[i].kind == Kind::kSpot;
+      break;
+    }
+    slots_.push_back({0, int(t), delta});
+  }
+  for (uint32_t i = 0; i < lights_.size(); ++i)
+    if (treeOfLight_[i] >= 0) slotOfLight_[i] = slotOfTree[treeOfLight_[i]];
+}
+
+size_t LightSet::TreeLightCount() const {
+  size_t n = 0;
+  for (const auto& tree : trees_) n += tree->Size();
+  return n;
 }
 
 namespace {
@@ -237,36 +324,70 @@ double LightSet::LightImportance(const LightData& l, const Vec3d& p, const Vec3d
 
 double LightSet::Importance(const Vec3d& p, const Vec3d* n, bool includeDelta,
                             std::span<double> importance) const {
-  PB_DCHECK_EQ(importance.size(), lights_.size());
+  PB_DCHECK_EQ(importance.size(), slots_.size());
   double total = 0;
-  for (size_t i = 0; i < lights_.size(); ++i) {
-    const LightData& l = lights_[i];
-    const bool delta =
-        l.kind == Kind::kPoint || l.kind == Kind::kSpot || l.kind == Kind::kDirectional;
-    importance[i] = (delta && !includeDelta) ? 0 : LightImportance(l, p, n);
-    total += importance[i];
+  const auto leaf = [&](uint32_t light) { return LightImportance(lights_[light], p, n); };
+  for (size_t s = 0; s < slots_.size(); ++s) {
+    const Slot& slot = slots_[s];
+    if (slot.delta && !includeDelta) {
+      importance[s] = 0;
+    } else if (slot.tree >= 0) {
+      importance[s] = trees_[slot.tree]->RootImportance(p, n, leaf);
+    } else {
+      importance[s] = LightImportance(lights_[slot.light], p, n);
+    }
+    total += importance[s];
   }
   return total;
 }
 
-bool LightSet::Sample(const Vec3d& p, const Vec3d* n, std::span<const double> importance,
-                      double total, double uSelect, const Vec2d& u, LightSample* sample) const {
+double LightSet::SelectionPmf(uint32_t light, const Vec3d& p, const Vec3d* n,
+                              std::span<const double> importance, double total) const {
+  if (!(total > 0)) return 0;
+  const double pmf = importance[slotOfLight_[light]] / total;
+  const int tree = treeOfLight_[light];
+  if (tree < 0) return pmf;
+  const auto leaf = [&](uint32_t i) { return LightImportance(lights_[i], p, n); };
+  return pmf * trees_[tree]->Pmf(light, p, n, leaf);
+}
+
+bool LightSet::Choose(const Vec3d& p, const Vec3d* n, std::span<const double> importance,
+                      double total, double uSelect, uint32_t* light, double* pmfOut) const {
   if (!(total > 0)) return false;
   // Linear scan: the importance array is rebuilt at every vertex anyway.
   const double target = uSelect * total;
   double cdf = 0;
-  size_t chosen = lights_.size();
-  for (size_t i = 0; i < lights_.size(); ++i) {
-    if (importance[i] <= 0) continue;
-    chosen = i;
-    if (target < cdf + importance[i]) break;
-    cdf += importance[i];
+  size_t chosen = slots_.size();
+  for (size_t s = 0; s < slots_.size(); ++s) {
+    if (importance[s] <= 0) continue;
+    chosen = s;
+    if (target < cdf + importance[s]) break;
+    cdf += importance[s];
   }
-  if (chosen == lights_.size()) return false;
-  const double pmf = importance[chosen] / total;
-  if (!SampleOne(lights_[chosen], uint32_t(chosen), p, n, u, sample)) return false;
+  if (chosen == slots_.size()) return false;
+  const Slot& slot = slots_[chosen];
+  double pmf = importance[chosen] / total;
+  *light = slot.light;
+  if (slot.tree >= 0) {
+    // The position of target within the chosen entry, uniform in [0, 1), picks the tree's light.
+    const double uTree = std::clamp((target - cdf) / importance[chosen], 0.0, kOneMinusEpsilon);
+    const auto leaf = [&](uint32_t i) { return LightImportance(lights_[i], p, n); };
+    double treePmf;
+    if (!trees_[slot.tree]->Sample(p, n, uTree, leaf, light, &treePmf)) return false;
+    pmf = pmf * treePmf;  // as SelectionPmf computes it
+  }
+  *pmfOut = pmf;
+  return true;
+}
+
+bool LightSet::Sample(const Vec3d& p, const Vec3d* n, std::span<const double> importance,
+                      double total, double uSelect, const Vec2d& u, LightSample* sample) const {
+  uint32_t light;
+  double pmf;
+  if (!Choose(p, n, importance, total, uSelect, &light, &pmf)) return false;
+  if (!SampleOne(lights_[light], light, p, n, u, sample)) return false;
   sample->pdf *= pmf;
-  sample->light = uint32_t(chosen);
+  sample->light = light;
   return sample->pdf > 0;
 }
 
@@ -440,7 +561,7 @@ bool LightSet::EvalSurfaceHit(const Vec3d& p, const Vec3d* n, std::span<const do
   const LightData& l = lights_[index];
   out->light = index;
   out->radiance = l.radiance;
-  const double pmf = total > 0 ? importance[index] / total : 0;
+  const double pmf = SelectionPmf(index, p, n, importance, total);
   const double d2 = hit.t * hit.t;
   switch (l.kind) {
     case Kind::kRect:
@@ -470,7 +591,6 @@ bool LightSet::EvalSurfaceHit(const Vec3d& p, const Vec3d* n, std::span<const do
     default:
       PB_CHECK(false);
   }
-  (void)n;
   return false;
 }
 

@@ -112,8 +112,8 @@ bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t
   const int order = settings_.shOrder;
   const Vec3f origin(p);
   S sampler(settings_.seed, Hash(probeKey, uint64_t(batch)));
-  std::vector<double> importanceProbe(lights_.Count()), scratchA(lights_.Count()),
-      scratchB(lights_.Count());
+  std::vector<double> importanceProbe(lights_.ImportanceSize()), scratchA(lights_.ImportanceSize()),
+      scratchB(lights_.ImportanceSize());
   const double totalProbe = lights_.Importance(p, nullptr, /*includeDelta=*/false, importanceProbe);
   const double pdfProbe = UniformSpherePdf();
 
