@@ -29,11 +29,15 @@
 #include "bench_report.h"
 #include "bench_scenes.h"
 #include "bench_util.h"
+#include "core/src/bake/light_set.h"
+#include "core/src/bake/tracer_scene.h"
 #include "probebake/bake/bake.h"
 #include "probebake/base/check.h"
 #include "probebake/base/log.h"
 #include "probebake/base/version.h"
 #include "probebake/job/job.h"
+#include "probebake/sampling/hash.h"
+#include "probebake/sampling/sampler.h"
 #include "probebake/volume/vdb_io.h"
 
 #ifndef PROBEBAKE_SOURCE_DIR
@@ -560,6 +564,53 @@ absl::Status Run(const Options& opt) {
     const RawRate* one = raw.Find("probe random", "rtcIntersect1", 1);
     const RawRate* two = raw.Find("probe random", "rtcIntersect1", 2);
     if (one && two) sc.rawRatio = two->wallMraysPerSecond / one->wallMraysPerSecond;
+  }
+
+  // Many lights: the demo room's ceiling light split into N small lights over the ceiling.
+  for (const BenchScene& scene : scenes) {
+    if (scene.name != "demo" || opt.scalingOnly) continue;
+    v1::BakeSettings s = BaseSettings();
+    s.set_samples_per_probe(opt.quick ? 64 : 256);
+    PB_ASSIGN_OR_RETURN(const BakeJob demo, BuildSceneJob(scene, s));
+    const auto* ceiling =
+        demo.scene.lights.empty() ? nullptr : std::get_if<RectLight>(&demo.scene.lights.front());
+    if (!ceiling) return absl::InternalError("the demo's first light is not its ceiling rect");
+    const double area = Length(Cross(ceiling->edge1, ceiling->edge2)), side = 0.1;
+    for (int n : {1, 16, 64, 256, 1024}) {
+      BakeJob job = demo;
+      job.scene.lights.erase(job.scene.lights.begin());
+      for (int i = 0; i < n; ++i) {
+        // Deterministic positions under the demo room's 8 x 6 m ceiling (z = 3).
+        const double x = -3.8 + 7.4 * U32ToUnit(uint32_t(Hash(n, i, 0))),
+                     y = -2.8 + 5.4 * U32ToUnit(uint32_t(Hash(n, i, 1)));
+        job.scene.lights.push_back(RectLight{{x, y, 2.99},
+                                             {0, side, 0},
+                                             {side, 0, 0},
+                                             ceiling->radiance * (area / (n * side * side)),
+                                             false});
+      }
+      ManyLightsRow row;
+      row.lights = n;
+      {
+        PB_ASSIGN_OR_RETURN(const auto tracer,
+                            TracerScene::Build(job.scene, LocalOrigin(job.scene)));
+        row.treeLights = LightSet(job.scene, *tracer).TreeLightCount();
+      }
+      log->info("many lights: {} lights ({} through the tree)", n, row.treeLights);
+      PB_ASSIGN_OR_RETURN(const Timed t, TimedBake(job, 1, 2));
+      row.cpu = t.cpu;
+      row.probes = t.volume.stats.probes;
+      row.samplesPerProbe = job.settings.samplesPerProbe;
+      double sum = 0;
+      int64_t counted = 0;
+      for (size_t p = 0; p < t.volume.stdError.size(); ++p) {
+        if (!t.volume.active[p]) continue;
+        sum += t.volume.stdError[p];
+        ++counted;
+      }
+      row.meanStdError = counted ? sum / double(counted) : 0;
+      results.manyLights.push_back(row);
+    }
   }
 
   if (opt.memory && !opt.scalingOnly) {

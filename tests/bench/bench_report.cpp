@@ -7,6 +7,7 @@
 #include <map>
 
 #include "bench_util.h"
+#include "core/src/bake/light_set.h"
 #include "probebake/base/status.h"
 
 namespace probebake::bench {
@@ -685,6 +686,29 @@ std::string Markdown(const BenchResults& r) {
         sc.scene.c_str(), (long long)sc.samplesPerProbe, (long long)sc.probes, sc.wall1.size(),
         sc.load, w1, double(sc.probes) / w1, c1, w2, double(sc.probes) / w2, c2, w1 / w2, c2 / c1,
         sc.rawRatio, sc.rawRatio > 0 ? (w1 / w2) / sc.rawRatio : 0.0);
+  } else {
+    md += "Not measured.\n";
+  }
+
+  md += "\n## Many lights\n\n";
+  if (!r.manyLights.empty()) {
+    const ManyLightsRow& base = r.manyLights.front();
+    md += Format(
+        "The demo room with its ceiling light replaced by N small (0.1 m) lights scattered over "
+        "the "
+        "ceiling, same total power, %lld samples/probe, %lld probes, 1 thread. Efficiency is 1 / "
+        "(CPU time x mean std_error^2), relative to the first row: above 1 means less noise per "
+        "second. Lights are chosen linearly below %zu of a kind and through a light tree from "
+        "there.\n\n| lights | chosen through the tree | CPU s | ms/probe | mean std_error | "
+        "efficiency |\n|---|---|---|---|---|---|\n",
+        (long long)base.samplesPerProbe, (long long)base.probes, kLightTreeMinLights);
+    for (const ManyLightsRow& row : r.manyLights) {
+      const double eff = (base.cpu * base.meanStdError * base.meanStdError) /
+                         (row.cpu * row.meanStdError * row.meanStdError);
+      md += Format("| %d | %zu | %.3g | %.3g | %s | %.2f |\n", row.lights, row.treeLights, row.cpu,
+                   1e3 * row.cpu / double(std::max<int64_t>(row.probes, 1)),
+                   Pct(row.meanStdError).c_str(), eff);
+    }
   } else {
     md += "Not measured.\n";
   }

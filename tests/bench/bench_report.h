@@ -69,6 +69,17 @@ struct ScalingInfo {
   double rawRatio = 0;  // raw Embree 2-thread / 1-thread wall rate, same moment (control)
 };
 
+// The demo room with its ceiling light replaced by N small lights spread over the ceiling (same
+// total power), at 1 thread: how the light choice's cost and quality scale with N (LightSet picks
+// through a light tree from kLightTreeMinLights lights of a kind).
+struct ManyLightsRow {
+  int lights = 0;
+  int64_t probes = 0, samplesPerProbe = 0;
+  double cpu = 0;           // CPU s, best of the repeats
+  double meanStdError = 0;  // mean reported relative standard error of L0 over the probes
+  size_t treeLights = 0;    // lights chosen through light trees
+};
+
 struct MemoryInfo {
   bool measured = false;
   std::string note;
@@ -95,6 +106,7 @@ struct BenchResults {
   std::vector<BakeRow> rows;
   std::vector<ThroughputInfo> throughput;
   ScalingInfo scaling;
+  std::vector<ManyLightsRow> manyLights;
   MemoryInfo memory;
   std::string presetText;  // the current preset numbers
 };
