@@ -209,10 +209,12 @@ void LightSet::BuildTrees(size_t treeMinLights) {
   }
   treeOfLight_.assign(lights_.size(), -1);
   slotOfLight_.assign(lights_.size(), 0);
+  std::vector<bool> treeIsDelta;
   for (int t = 0; t < 2; ++t) {
     if (items[t].empty() || items[t].size() < treeMinLights) continue;
     for (const LightTree::Item& it : items[t]) treeOfLight_[it.light] = int(trees_.size());
     trees_.push_back(std::make_unique<LightTree>(std::move(items[t])));
+    treeIsDelta.push_back(t == 1);
   }
   // Plain lights in index order, then one slot per tree.
   for (uint32_t i = 0; i < lights_.size(); ++i) {
@@ -224,14 +226,7 @@ void LightSet::BuildTrees(size_t treeMinLights) {
   std::vector<uint32_t> slotOfTree(trees_.size());
   for (size_t t = 0; t < trees_.size(); ++t) {
     slotOfTree[t] = uint32_t(slots_.size());
-    // A tree of delta lights holds point and spot lights only.
-    bool delta = false;
-    for (uint32_t i = 0; i < lights_.size(); ++i) {
-      if (treeOfLight_[i] != int(t)) continue;
-      delta = lights_[i].kind == Kind::kPoint || lights_[i].kind == Kind::kSpot;
-      break;
-    }
-    slots_.push_back({0, int(t), delta});
+    slots_.push_back({0, int(t), treeIsDelta[t]});
   }
   for (uint32_t i = 0; i < lights_.size(); ++i)
     if (treeOfLight_[i] >= 0) slotOfLight_[i] = slotOfTree[treeOfLight_[i]];

@@ -42,7 +42,7 @@ class LightTree {
   struct Item {
     Vec3d lo, hi;       // bounds of the light (local coordinates); a point has lo == hi
     double weight = 0;  // W >= 0
-    double clamp = 0;   // the light's own floor on d^2 (its area; > 0)
+    double clamp = 0;   // the light's own floor on d^2 (> 0; LightSet: its area, 1e-300 for points)
     // Emission directions: within thetaE of a normal within thetaO of axis (radians; thetaO >= pi
     // means every direction).
     Vec3d axis{0, 0, 1};
