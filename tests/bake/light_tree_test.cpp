@@ -1,6 +1,6 @@
 // The light tree's choice (light_tree.h through LightSet): its probabilities are a distribution,
-// the choice follows them exactly, it reaches exactly the lights the linear choice reaches, and a
-// bake through it matches the closed form.
+// the choice follows them exactly, it reaches exactly the lights the linear choice reaches, and
+// bakes through it match the closed form, also with radiances 20 orders of magnitude apart.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -142,31 +142,53 @@ TEST(LightTree, ReachesExactlyTheLightsTheLinearChoiceReaches) {
   EXPECT_GT(zero, 1000);
 }
 
-TEST(LightTree, ManyDiskLightsMatchTheirCapsThroughABake) {
-  // 96 disks facing a probe from 1.2 to 3 m away on a spherical Fibonacci lattice (neighbours
-  // about 20 degrees apart), each subtending 6.8 degrees, so no two caps overlap: the radiance is
-  // their caps' sum (closed_form_test.cpp). Enough disks for the default threshold.
-  constexpr int kDisks = 96;
-  static_assert(kDisks >= int(kLightTreeMinLights));
-  const Vec3d L{1.5, 1.2, 0.9};
-  BakeJob job = MakeJob(3, 8192);
-  std::vector<double> exact(ShCoeffCount(3), 0.0);
-  for (int i = 0; i < kDisks; ++i) {
-    const double z = 1 - (2 * i + 1.0) / kDisks, r = std::sqrt(1 - z * z);
+// 96 disks facing the origin on a spherical Fibonacci lattice (neighbours about 20 degrees apart),
+// 1.2 to 3 m away, each subtending 6.8 degrees: no two caps overlap. Disk i has grey radiance
+// radiance(i); returns the exact projection of their sum.
+template <typename Radiance>
+std::vector<double> AddDiskLattice(BakeJob* job, int order, int disks, Radiance&& radiance) {
+  std::vector<double> exact(ShCoeffCount(order), 0.0);
+  for (int i = 0; i < disks; ++i) {
+    const double z = 1 - (2 * i + 1.0) / disks, r = std::sqrt(1 - z * z);
     const double phi = i * kPi * (3 - std::sqrt(5.0));
     const Vec3d axis{r * std::cos(phi), r * std::sin(phi), z};
-    const double h = 1.2 + 1.8 * (i % 5) / 4.0, a = 0.12 * h;  // cap half-angle ~6.8 degrees
-    job.scene.lights.push_back(DiskLight{axis * h, -axis, a, L, false});
-    const std::vector<double> cap = CapProjection(3, axis, h / std::sqrt(h * h + a * a));
-    for (size_t k = 0; k < exact.size(); ++k) exact[k] += cap[k];
+    const double h = 1.2 + 1.8 * (i % 5) / 4.0, a = 0.12 * h;
+    const double L = radiance(i);
+    job->scene.lights.push_back(DiskLight{axis * h, -axis, a, {L, L, L}, false});
+    const std::vector<double> cap = CapProjection(order, axis, h / std::sqrt(h * h + a * a));
+    for (size_t k = 0; k < exact.size(); ++k) exact[k] += L * cap[k];
   }
-  {
-    auto tracer = TracerScene::Build(job.scene, LocalOrigin(job.scene));
-    ASSERT_TRUE(tracer.ok()) << tracer.status();
-    ASSERT_EQ(LightSet(job.scene, **tracer).TreeLightCount(), size_t(kDisks))
-        << "the disks should be chosen through a light tree";
-  }
-  ExpectProjection(Probe(BakeOrDie(job), 0), exact, L, "96 disk lights");
+  return exact;
+}
+
+// Fails the test unless every light of the job's scene is chosen through a light tree by default.
+void ExpectEveryLightInATree(const BakeJob& job) {
+  auto tracer = TracerScene::Build(job.scene, LocalOrigin(job.scene));
+  ASSERT_TRUE(tracer.ok()) << tracer.status();
+  EXPECT_EQ(LightSet(job.scene, **tracer).TreeLightCount(), job.scene.lights.size());
+}
+
+TEST(Extremes, DiskLightsFromOneTenBillionthToTenBillionThroughTheLightTree) {
+  // Radiances 10^-10 .. 10^10 in one light tree: cluster weights span 20 orders of magnitude and
+  // the walk's ratios must neither underflow to a dead end nor overflow.
+  BakeJob job = MakeJob(2, 8192);
+  const std::vector<double> exact =
+      AddDiskLattice(&job, 2, 96, [](int i) { return std::pow(10.0, double(i % 21) - 10); });
+  ExpectEveryLightInATree(job);
+  const ProbeVolume v = BakeOrDie(job);
+  const ProbeResult r = Probe(v, 0);
+  for (const Vec3d& c : r.radiance) ASSERT_TRUE(std::isfinite(c.x + c.y + c.z));
+  ExpectProjection(r, exact, {1, 1, 1}, "disks of 1e-10 to 1e10");
+}
+
+TEST(LightTree, ManyDiskLightsMatchTheirCapsThroughABake) {
+  // The radiance is the sum of the disks' caps (closed_form_test.cpp); 96 disks are enough for
+  // the default threshold.
+  static_assert(96 >= kLightTreeMinLights);
+  BakeJob job = MakeJob(3, 8192);
+  const std::vector<double> exact = AddDiskLattice(&job, 3, 96, [](int) { return 1.5; });
+  ExpectEveryLightInATree(job);
+  ExpectProjection(Probe(BakeOrDie(job), 0), exact, {1, 1, 1}, "96 disk lights");
 }
 
 }  // namespace
