@@ -21,6 +21,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numbers>
 #include <sstream>
 
 #include "bench_metrics.h"
@@ -566,7 +567,9 @@ absl::Status Run(const Options& opt) {
     if (one && two) sc.rawRatio = two->wallMraysPerSecond / one->wallMraysPerSecond;
   }
 
-  // Many lights: the demo room's ceiling light split into N small lights over the ceiling.
+  // Many lights in the demo room, instead of its ceiling light: N small lights scattered over the
+  // ceiling with the ceiling light's total power ("ceiling"), or N mixed point, spot, rect and
+  // sphere lights scattered through the room's volume ("volume").
   for (const BenchScene& scene : scenes) {
     if (scene.name != "demo" || opt.scalingOnly) continue;
     v1::BakeSettings s = BaseSettings();
@@ -575,41 +578,79 @@ absl::Status Run(const Options& opt) {
     const auto* ceiling =
         demo.scene.lights.empty() ? nullptr : std::get_if<RectLight>(&demo.scene.lights.front());
     if (!ceiling) return absl::InternalError("the demo's first light is not its ceiling rect");
-    const double area = Length(Cross(ceiling->edge1, ceiling->edge2)), side = 0.1;
-    for (int n : {1, 16, 64, 256, 1024}) {
-      BakeJob job = demo;
-      job.scene.lights.erase(job.scene.lights.begin());
+    const double area = Length(Cross(ceiling->edge1, ceiling->edge2));
+    // Deterministic uniform numbers for light i of n.
+    const auto u = [](int n, int i, int k) { return U32ToUnit(uint32_t(Hash(n, i, k))); };
+    const auto ceilingLights = [&](int n, std::vector<Light>* lights) {
+      const double side = 0.1;
       for (int i = 0; i < n; ++i) {
-        // Deterministic positions under the demo room's 8 x 6 m ceiling (z = 3).
-        const double x = -3.8 + 7.4 * U32ToUnit(uint32_t(Hash(n, i, 0))),
-                     y = -2.8 + 5.4 * U32ToUnit(uint32_t(Hash(n, i, 1)));
-        job.scene.lights.push_back(RectLight{{x, y, 2.99},
-                                             {0, side, 0},
-                                             {side, 0, 0},
-                                             ceiling->radiance * (area / (n * side * side)),
-                                             false});
+        lights->push_back(RectLight{{-3.8 + 7.4 * u(n, i, 0), -2.8 + 5.4 * u(n, i, 1), 2.99},
+                                    {0, side, 0},
+                                    {side, 0, 0},
+                                    ceiling->radiance * (area / (n * side * side)),
+                                    false});
       }
-      ManyLightsRow row;
-      row.lights = n;
-      {
-        PB_ASSIGN_OR_RETURN(const auto tracer,
-                            TracerScene::Build(job.scene, LocalOrigin(job.scene)));
-        row.treeLights = LightSet(job.scene, *tracer).TreeLightCount();
+    };
+    const auto volumeLights = [&](int n, std::vector<Light>* lights) {
+      // Each light's intensity (W/sr, along its strongest direction) is 1/n of the total.
+      const Vec3d intensity = Vec3d{5, 4.5, 4} * (40.0 / n);
+      const double side = 0.15, radius = 0.05;
+      for (int i = 0; i < n; ++i) {
+        const Vec3d p{-3.8 + 7.6 * u(n, i, 0), -2.8 + 5.6 * u(n, i, 1), 0.3 + 2.6 * u(n, i, 2)};
+        switch (i % 4) {
+          case 0:
+            lights->push_back(PointLight{p, intensity});
+            break;
+          case 1:
+            lights->push_back(SpotLight{p, Normalize(Vec3d{u(n, i, 3) - 0.5, u(n, i, 4) - 0.5, -1}),
+                                        intensity, std::cos(25 * std::numbers::pi / 180),
+                                        std::cos(40 * std::numbers::pi / 180)});
+            break;
+          case 2:
+            lights->push_back(
+                RectLight{p, {0, side, 0}, {side, 0, 0}, intensity / (side * side), false});
+            break;
+          default:
+            lights->push_back(
+                SphereLight{p, radius, intensity / (std::numbers::pi * radius * radius)});
+            break;
+        }
       }
-      log->info("many lights: {} lights ({} through the tree)", n, row.treeLights);
-      PB_ASSIGN_OR_RETURN(const Timed t, TimedBake(job, 1, 2));
-      row.cpu = t.cpu;
-      row.probes = t.volume.stats.probes;
-      row.samplesPerProbe = job.settings.samplesPerProbe;
-      double sum = 0;
-      int64_t counted = 0;
-      for (size_t p = 0; p < t.volume.stdError.size(); ++p) {
-        if (!t.volume.active[p]) continue;
-        sum += t.volume.stdError[p];
-        ++counted;
+    };
+    const std::pair<const char*, std::vector<int>> layouts[] = {{"ceiling", {1, 16, 64, 256, 1024}},
+                                                                {"volume", {24, 96, 384}}};
+    for (const auto& [layout, counts] : layouts) {
+      for (int n : counts) {
+        BakeJob job = demo;
+        job.scene.lights.erase(job.scene.lights.begin());
+        if (std::string(layout) == "ceiling") {
+          ceilingLights(n, &job.scene.lights);
+        } else {
+          volumeLights(n, &job.scene.lights);
+        }
+        ManyLightsRow row;
+        row.layout = layout;
+        row.lights = n;
+        {
+          PB_ASSIGN_OR_RETURN(const auto tracer,
+                              TracerScene::Build(job.scene, LocalOrigin(job.scene)));
+          row.treeLights = LightSet(job.scene, *tracer).TreeLightCount();
+        }
+        log->info("many lights, {}: {} lights ({} through a tree)", layout, n, row.treeLights);
+        PB_ASSIGN_OR_RETURN(const Timed t, TimedBake(job, 1, 2));
+        row.cpu = t.cpu;
+        row.probes = t.volume.stats.probes;
+        row.samplesPerProbe = job.settings.samplesPerProbe;
+        double sum = 0;
+        int64_t counted = 0;
+        for (size_t p = 0; p < t.volume.stdError.size(); ++p) {
+          if (!t.volume.active[p]) continue;
+          sum += t.volume.stdError[p];
+          ++counted;
+        }
+        row.meanStdError = counted ? sum / double(counted) : 0;
+        results.manyLights.push_back(row);
       }
-      row.meanStdError = counted ? sum / double(counted) : 0;
-      results.manyLights.push_back(row);
     }
   }
 

@@ -692,22 +692,26 @@ std::string Markdown(const BenchResults& r) {
 
   md += "\n## Many lights\n\n";
   if (!r.manyLights.empty()) {
-    const ManyLightsRow& base = r.manyLights.front();
+    const ManyLightsRow& first = r.manyLights.front();
     md += Format(
-        "The demo room with its ceiling light replaced by N small (0.1 m) lights scattered over "
-        "the "
-        "ceiling, same total power, %lld samples/probe, %lld probes, 1 thread. Efficiency is 1 / "
-        "(CPU time x mean std_error^2), relative to the first row: above 1 means less noise per "
-        "second. Lights are chosen linearly below %zu of a kind and through a light tree from "
-        "there.\n\n| lights | chosen through the tree | CPU s | ms/probe | mean std_error | "
-        "efficiency |\n|---|---|---|---|---|---|\n",
-        (long long)base.samplesPerProbe, (long long)base.probes, kLightTreeMinLights);
+        "The demo room with its ceiling light replaced by N lights, %lld samples/probe, %lld "
+        "probes, 1 thread. **ceiling**: N small (0.1 m) rects scattered over the ceiling with the "
+        "ceiling light's total power. **volume**: N point, spot, rect and sphere lights (a quarter "
+        "each) scattered through the room. Lights are chosen linearly below %zu of a kind (area, "
+        "or point and spot) and through a light tree from there. Efficiency is 1 / (CPU time x "
+        "mean std_error^2), relative to the layout's first row: above 1 means less noise per "
+        "second.\n\n| layout | lights | chosen through a tree | CPU s | ms/probe | mean "
+        "std_error | efficiency |\n|---|---|---|---|---|---|---|\n",
+        (long long)first.samplesPerProbe, (long long)first.probes, kLightTreeMinLights);
+    const ManyLightsRow* base = nullptr;
     for (const ManyLightsRow& row : r.manyLights) {
-      const double eff = (base.cpu * base.meanStdError * base.meanStdError) /
+      if (!base || base->layout != row.layout) base = &row;
+      const double eff = (base->cpu * base->meanStdError * base->meanStdError) /
                          (row.cpu * row.meanStdError * row.meanStdError);
-      md += Format("| %d | %zu | %.3g | %.3g | %s | %.2f |\n", row.lights, row.treeLights, row.cpu,
-                   1e3 * row.cpu / double(std::max<int64_t>(row.probes, 1)),
-                   Pct(row.meanStdError).c_str(), eff);
+      md +=
+          Format("| %s | %d | %zu | %.3g | %.3g | %s | %.2f |\n", row.layout.c_str(), row.lights,
+                 row.treeLights, row.cpu, 1e3 * row.cpu / double(std::max<int64_t>(row.probes, 1)),
+                 Pct(row.meanStdError).c_str(), eff);
     }
   } else {
     md += "Not measured.\n";

@@ -69,10 +69,11 @@ struct ScalingInfo {
   double rawRatio = 0;  // raw Embree 2-thread / 1-thread wall rate, same moment (control)
 };
 
-// The demo room with its ceiling light replaced by N small lights spread over the ceiling (same
-// total power), at 1 thread: how the light choice's cost and quality scale with N (LightSet picks
-// through a light tree from kLightTreeMinLights lights of a kind).
+// The demo room with its ceiling light replaced by N lights, at 1 thread: how the light choice's
+// cost and quality scale with N (LightSet picks through a light tree from kLightTreeMinLights
+// lights of a kind).
 struct ManyLightsRow {
+  std::string layout;  // "ceiling": small rects over the ceiling; "volume": mixed, through the room
   int lights = 0;
   int64_t probes = 0, samplesPerProbe = 0;
   double cpu = 0;           // CPU s, best of the repeats
