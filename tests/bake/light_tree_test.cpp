@@ -124,6 +124,7 @@ TEST(LightTree, ReachesExactlyTheLightsTheLinearChoiceReaches) {
   ASSERT_TRUE(tracer.ok()) << tracer.status();
   const LightSet tree(scene, **tracer, /*treeMinLights=*/1);
   const LightSet linear(scene, **tracer, /*treeMinLights=*/1000);
+  ASSERT_EQ(tree.TreeLightCount(), 120u);
   ASSERT_EQ(linear.TreeLightCount(), 0u);
   std::vector<double> a(tree.ImportanceSize()), b(linear.ImportanceSize());
   int positive = 0, zero = 0;

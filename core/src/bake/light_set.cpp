@@ -165,47 +165,42 @@ void LightSet::BuildTrees(size_t treeMinLights) {
     const LightData& l = lights_[i];
     LightTree::Item it;
     it.light = i;
+    if (l.kind == Kind::kPoint || l.kind == Kind::kSpot) {
+      it.lo = it.hi = l.position;
+      it.weight = l.power;
+      it.clamp = 1e-300;
+      if (l.kind == Kind::kSpot)
+        it.axis = l.axis, it.thetaO = 0, it.thetaE = std::acos(std::clamp(l.cosOuter, -1.0, 1.0));
+      items[1].push_back(it);
+      continue;
+    }
     const Vec3d r{l.radius, l.radius, l.radius};
     switch (l.kind) {
       case Kind::kRect:
         it.lo = it.hi = l.corners[0];
         for (const Vec3d& q : l.corners) it.lo = Min(it.lo, q), it.hi = Max(it.hi, q);
-        it.weight = l.power * l.area;
-        it.clamp = l.area;
-        if (!l.twoSided) it.axis = l.axis, it.thetaO = 0, it.thetaE = kPi / 2;
-        items[0].push_back(it);
         break;
       case Kind::kDisk:
-        it.lo = l.position - r, it.hi = l.position + r;
-        it.weight = l.power * l.area;
-        it.clamp = l.area;
-        if (!l.twoSided) it.axis = l.axis, it.thetaO = 0, it.thetaE = kPi / 2;
-        items[0].push_back(it);
-        break;
       case Kind::kSphere:
         it.lo = l.position - r, it.hi = l.position + r;
-        it.weight = l.power * kPi * l.radius * l.radius;
-        it.clamp = kPi * l.radius * l.radius;
-        items[0].push_back(it);
         break;
       case Kind::kMesh:
         it.lo = l.boundsMin, it.hi = l.boundsMax;
-        it.weight = l.power * l.area;
-        it.clamp = l.area;
-        items[0].push_back(it);
-        break;
-      case Kind::kPoint:
-      case Kind::kSpot:
-        it.lo = it.hi = l.position;
-        it.weight = l.power;
-        it.clamp = 1e-300;
-        if (l.kind == Kind::kSpot)
-          it.axis = l.axis, it.thetaO = 0, it.thetaE = std::acos(std::clamp(l.cosOuter, -1.0, 1.0));
-        items[1].push_back(it);
         break;
       default:
-        break;
+        continue;  // distant lights stay in the linear choice
     }
+    // W and the d^2 floor of LightImportance: the emitting area (a sphere's disk, seen from afar).
+    if (l.kind == Kind::kSphere) {
+      it.weight = l.power * kPi * l.radius * l.radius;
+      it.clamp = kPi * l.radius * l.radius;
+    } else {
+      it.weight = l.power * l.area;
+      it.clamp = l.area;
+    }
+    if ((l.kind == Kind::kRect || l.kind == Kind::kDisk) && !l.twoSided)
+      it.axis = l.axis, it.thetaO = 0, it.thetaE = kPi / 2;
+    items[0].push_back(it);
   }
   treeOfLight_.assign(lights_.size(), -1);
   slotOfLight_.assign(lights_.size(), 0);

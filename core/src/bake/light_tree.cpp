@@ -75,6 +75,7 @@ uint32_t LightTree::Build(std::vector<Item>& items, size_t begin, size_t end, ui
   // spacing of n lights spread through the box (half-diagonal r): r / n^(1/3).
   const double n = double(end - begin);
   node.clamp = std::max(node.clamp, 0.25 * LengthSquared(node.hi - node.lo) / std::cbrt(n * n));
+  node.centre = (node.lo + node.hi) * 0.5;
   node.radius = 0.5 * Length(node.hi - node.lo);
   if (cone.thetaO < kPi && cone.thetaO + cone.thetaE < kPi) {
     node.everyDirection = false;

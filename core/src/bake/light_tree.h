@@ -121,6 +121,7 @@ class LightTree {
     bool everyDirection = true;  // the cone below bounds nothing
     Vec3d axis;
     double cosO = -1, sinO = 0, cosE = 0;
+    Vec3d centre;       // of the box
     double radius = 0;  // half the box diagonal
     bool leaf = false;
     uint32_t child0 = 0, child1 = 0;  // inner nodes
@@ -148,7 +149,7 @@ class LightTree {
     const Vec3d toFar = Max(nd.hi - p, p - nd.lo);
     double cosP = 1;
     if (!nd.everyDirection) {
-      const Vec3d v = p - (nd.lo + nd.hi) * 0.5;
+      const Vec3d v = p - nd.centre;
       const double d2 = LengthSquared(v);
       const double r2 = nd.radius * nd.radius;
       if (d2 > r2) {
