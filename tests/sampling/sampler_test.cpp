@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "probebake/sampling/sobol_chunk.h"
 #include "sampling/stats.h"
 
 namespace probebake {
@@ -28,6 +29,17 @@ TEST(Sobol, SecondDimensionDirectionNumbers) {
   const double expected[] = {0, 0.5, 0.75, 0.25, 0.625, 0.125, 0.375, 0.875};
   for (uint32_t i = 0; i < 8; ++i) EXPECT_EQ(U32ToUnit(SobolSample32(i, 1)), expected[i]);
   EXPECT_EQ(SobolSample32(0x80000000u, 0), 1u);
+}
+
+// The table-free bit-reversed dimension 1 is the same linear map over GF(2) as the generator
+// tables: equal on the 32 basis indices (which proves it), and on a few mixed ones.
+TEST(Sobol, SecondDimensionReversedEqualsTheTables) {
+  for (int k = 0; k < 32; ++k) {
+    const uint32_t basis = uint32_t{1} << k;
+    EXPECT_EQ(SobolSample32Dim1Reversed(basis), ReverseBits32(SobolSample32(basis, 1))) << k;
+  }
+  for (uint32_t i : {0u, 3u, 0x12345678u, 0xffffffffu})
+    EXPECT_EQ(SobolSample32Dim1Reversed(i), ReverseBits32(SobolSample32(i, 1))) << i;
 }
 
 TEST(Sobol, ReverseBits) {
@@ -241,6 +253,62 @@ TEST(Sampler, IndependentIsUniform) {
   const auto r1 = ChiSquareTest(o1, e1, kAlpha), r2 = ChiSquareTest(o2, e2, kAlpha);
   EXPECT_TRUE(r1.pass) << r1.ToString();
   EXPECT_TRUE(r2.pass) << r2.ToString();
+}
+
+// ---- SobolSampler against its definition (sampler.h), value for value.
+
+// Dimension set d of sample i of stream (seed, stream), both coordinates, from the building blocks:
+// the index shuffled by OwenScramble32 under s0, then Sobol dimensions 0 and 1 at that index,
+// scrambled under s1 and s2.
+Vec2d DefinedPoint(uint64_t seed, uint64_t stream, uint32_t i, uint64_t d) {
+  const uint64_t key = HashCombine(Hash(seed, stream), d);
+  const uint32_t shuffled = OwenScramble32(i, uint32_t(key));
+  return {U32ToUnit(OwenScramble32(SobolSample32(shuffled, 0), uint32_t(key >> 32))),
+          U32ToUnit(OwenScramble32(SobolSample32(shuffled, 1), uint32_t(MixBits(key))))};
+}
+
+// Every value of 200 dimension sets (past the cached seeds' end at 48, chunks of 8 cut anywhere
+// by the mix of calls) over mixed Get1D / Get2D schedules, samples revisited out of order.
+TEST(Sampler, SobolSamplerFollowsItsDefinition) {
+  for (uint64_t stream : {uint64_t{0}, uint64_t{77}, Hash(5, 6)}) {
+    SobolSampler s(2024, stream);
+    for (uint32_t i : {0u, 1u, 2u, 1000u, 3u, 0xffffffffu, 1u, 0x80000000u}) {
+      s.StartSample(i);
+      for (uint64_t d = 0; d < 200; ++d) {
+        const Vec2d expected = DefinedPoint(2024, stream, i, d);
+        if (Hash(stream, i, d) & 1) {
+          ASSERT_EQ(s.Get2D(), expected) << "stream " << stream << " sample " << i << " set " << d;
+        } else {
+          ASSERT_EQ(s.Get1D(), expected.x)
+              << "stream " << stream << " sample " << i << " set " << d;
+        }
+      }
+    }
+  }
+}
+
+// Both SIMD chunk implementations (the dispatcher picks one) against the scalar definition.
+TEST(Sampler, SobolChunkImplementationsAgreeWithTheDefinition) {
+  using Chunk =
+      void (*)(uint32_t, const uint32_t*, const uint32_t*, const uint32_t*, uint32_t*, uint32_t*);
+  std::vector<Chunk> chunks{detail::SobolChunkGeneric, SobolChunk};
+  if (detail::CpuHasAvx2()) chunks.push_back(detail::SobolChunkAvx2);
+  for (Chunk chunk : chunks) {
+    for (uint64_t trial = 0; trial < 2000; ++trial) {
+      uint32_t s0[kSobolChunk], s1[kSobolChunk], s2[kSobolChunk], x[kSobolChunk], y[kSobolChunk];
+      for (int j = 0; j < kSobolChunk; ++j) {
+        const uint64_t h = Hash(trial, uint64_t(j));
+        s0[j] = uint32_t(h), s1[j] = uint32_t(h >> 32), s2[j] = uint32_t(MixBits(h));
+      }
+      const uint32_t i = uint32_t(Hash(trial) >> 7);
+      chunk(ReverseBits32(i), s0, s1, s2, x, y);
+      for (int j = 0; j < kSobolChunk; ++j) {
+        const uint32_t shuffled = OwenScramble32(i, s0[j]);
+        ASSERT_EQ(x[j], OwenScramble32(SobolSample32(shuffled, 0), s1[j])) << trial << " " << j;
+        ASSERT_EQ(y[j], OwenScramble32(SobolSample32(shuffled, 1), s2[j])) << trial << " " << j;
+      }
+    }
+  }
 }
 
 TEST(Sampler, SobolRejectsIndicesBeyond32Bits) {

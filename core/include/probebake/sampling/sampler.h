@@ -36,6 +36,7 @@
 #include "probebake/math/vec3.h"
 #include "probebake/sampling/hash.h"
 #include "probebake/sampling/sobol.h"
+#include "probebake/sampling/sobol_chunk.h"
 
 namespace probebake {
 
@@ -60,55 +61,60 @@ class SobolSampler {
     PB_CHECK_LT(index, uint64_t{1} << 32);
     reversedIndex_ = ReverseBits32(static_cast<uint32_t>(index));
     dimension_ = 0;
+    chunkEnd_ = 0;
   }
 
-  // Written out from OwenScramble32 to share bit reversals: with r = ReverseBits32(index), the
-  // shuffled index is i' = Rev(LK(r, s0)), dimension 0 of the Sobol point is Rev(i') and its
-  // scramble is Rev(LK(Rev(Rev(i')), s1)) = Rev(LK(i', s1)); dimension 1's scramble
-  // Rev(LK(Rev(Sobol1(i')), s2)) takes Rev(Sobol1(i')) from bit-reversed tables.
-  double Get1D() {
-    const uint64_t key = NextDimensionKeys().key;
-    const uint32_t i = ReverseBits32(LaineKarrasPermutation(reversedIndex_, uint32_t(key)));
-    return U32ToUnit(ReverseBits32(LaineKarrasPermutation(i, uint32_t(key >> 32))));
-  }
+  double Get1D() { return U32ToUnit(x_[NextInChunk()]); }
 
   Vec2d Get2D() {
-    const DimensionKeys& k = NextDimensionKeys();
-    const uint32_t i = ReverseBits32(LaineKarrasPermutation(reversedIndex_, uint32_t(k.key)));
-    return {U32ToUnit(ReverseBits32(LaineKarrasPermutation(i, uint32_t(k.key >> 32)))),
-            U32ToUnit(ReverseBits32(
-                LaineKarrasPermutation(SobolSample32Dim1Reversed(i), uint32_t(k.key2))))};
+    const uint64_t j = NextInChunk();
+    return {U32ToUnit(x_[j]), U32ToUnit(y_[j])};
   }
 
  private:
-  struct DimensionKeys {
-    uint64_t key;   // Hash(seed, stream, d)
-    uint64_t key2;  // MixBits(key): a third independent 32-bit seed for Get2D
-  };
-  // The keys of the current dimension set d, then advance d. They depend on the stream and d
-  // only, not on the sample, so the first kCachedSets are computed once per stream: samples
-  // consume dimension sets in order from 0, so the cache fills contiguously.
-  const DimensionKeys& NextDimensionKeys() {
-    const uint64_t d = dimension_++;
-    if (d < cached_) return cache_[d];
-    DimensionKeys k{HashCombine(streamHash_, d), 0};
-    k.key2 = MixBits(k.key);
-    if (d == cached_ && d < kCachedSets) {
-      cache_[d] = k;
-      ++cached_;
-      return cache_[d];
+  // The current dimension set's lane in the chunk of precomputed sets, then advance d. Sets are
+  // computed kSobolChunk at a time (sobol_chunk.h, in SIMD); a path that ends mid-chunk wastes
+  // the rest, which costs less than computing each set alone.
+  uint64_t NextInChunk() {
+    if (dimension_ == chunkEnd_) FillChunk();
+    return dimension_++ - (chunkEnd_ - kSobolChunk);
+  }
+
+  // Points of dimension sets [dimension_, dimension_ + kSobolChunk) of the current sample. Their
+  // seeds depend on the stream and d only, not on the sample, so those of the first kCachedSets
+  // are computed once per stream.
+  void FillChunk() {
+    const uint64_t begin = dimension_;
+    chunkEnd_ = begin + kSobolChunk;
+    if (chunkEnd_ <= kCachedSets) {
+      for (; cached_ < chunkEnd_; ++cached_)
+        Seeds(cached_, &s0_[cached_], &s1_[cached_], &s2_[cached_]);
+      SobolChunk(reversedIndex_, &s0_[begin], &s1_[begin], &s2_[begin], x_, y_);
+      return;
     }
-    overflow_ = k;
-    return overflow_;
+    uint32_t s0[kSobolChunk], s1[kSobolChunk], s2[kSobolChunk];
+    for (int j = 0; j < kSobolChunk; ++j) Seeds(begin + j, &s0[j], &s1[j], &s2[j]);
+    SobolChunk(reversedIndex_, s0, s1, s2, x_, y_);
+  }
+
+  // Dimension set d's seeds: the halves of key = Hash(seed, stream, d) and the low half of
+  // MixBits(key) (a third independent 32-bit seed for Get2D's second coordinate).
+  void Seeds(uint64_t d, uint32_t* s0, uint32_t* s1, uint32_t* s2) const {
+    const uint64_t key = HashCombine(streamHash_, d);
+    *s0 = uint32_t(key);
+    *s1 = uint32_t(key >> 32);
+    *s2 = uint32_t(MixBits(key));
   }
 
   static constexpr uint64_t kCachedSets = 48;
+  static_assert(kCachedSets % kSobolChunk == 0, "chunks never straddle the cached sets' end");
   uint64_t streamHash_;         // Hash(seed, stream)
   uint32_t reversedIndex_ = 0;  // ReverseBits32(index)
   uint64_t dimension_ = 0;
-  uint64_t cached_ = 0;
-  DimensionKeys cache_[kCachedSets];
-  DimensionKeys overflow_{};
+  uint64_t chunkEnd_ = 0;  // the chunk holds sets [chunkEnd_ - kSobolChunk, chunkEnd_)
+  uint64_t cached_ = 0;    // seeds of sets [0, cached_) are in s0_, s1_, s2_
+  uint32_t s0_[kCachedSets], s1_[kCachedSets], s2_[kCachedSets];
+  uint32_t x_[kSobolChunk], y_[kSobolChunk];  // the chunk's points, 32-bit fixed point
 };
 
 class IndependentSampler {

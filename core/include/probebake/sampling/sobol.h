@@ -77,24 +77,21 @@ constexpr std::array<std::array<uint32_t, 256>, 4> MakeSobolDim1Tables() {
 
 inline constexpr std::array<std::array<uint32_t, 256>, 4> kSobolDim1Bytes = MakeSobolDim1Tables();
 
-// The same tables bit-reversed, for scrambling in the reversed domain without reversing first.
-constexpr std::array<std::array<uint32_t, 256>, 4> ReverseTables(
-    const std::array<std::array<uint32_t, 256>, 4>& t) {
-  std::array<std::array<uint32_t, 256>, 4> r{};
-  for (int b = 0; b < 4; ++b)
-    for (int x = 0; x < 256; ++x) r[b][x] = ReverseBits32(t[b][x]);
-  return r;
-}
-inline constexpr std::array<std::array<uint32_t, 256>, 4> kSobolDim1BytesReversed =
-    ReverseTables(kSobolDim1Bytes);
-
 }  // namespace detail
 
-// ReverseBits32(SobolSample32(index, 1)), without the reversal.
+// ReverseBits32(SobolSample32(index, 1)), without tables or reversal. Bit-reversed, direction
+// number k of dimension 1 has bit j set iff the binomial coefficient C(k, j) is odd, which by
+// Lucas' theorem holds iff the binary digits of j are a subset of those of k. So bit j of the
+// point is the XOR of the index bits k whose digits contain j's: a superset-XOR transform over
+// the five binary digits of the bit position, done one digit per step (each step adds, to the
+// positions whose digit is 0, the bit 2^digit positions above).
 constexpr uint32_t SobolSample32Dim1Reversed(uint32_t index) {
-  const auto& t = detail::kSobolDim1BytesReversed;
-  return t[0][index & 0xffu] ^ t[1][(index >> 8) & 0xffu] ^ t[2][(index >> 16) & 0xffu] ^
-         t[3][index >> 24];
+  index ^= (index >> 1) & 0x55555555u;
+  index ^= (index >> 2) & 0x33333333u;
+  index ^= (index >> 4) & 0x0f0f0f0fu;
+  index ^= (index >> 8) & 0x00ff00ffu;
+  index ^= (index >> 16) & 0x0000ffffu;
+  return index;
 }
 
 // Sobol point `index` in dimension 0 or 1 (precondition: dimension is 0 or 1), as 32-bit fixed
