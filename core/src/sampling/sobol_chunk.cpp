@@ -6,11 +6,11 @@ namespace probebake {
 namespace {
 
 // One body for both targets: the compiler vectorises the lane loop for each (32-bit multiplies,
-// shifts and table gathers; 8 lanes fill one AVX2 register). Written out from OwenScramble32 to
-// share bit reversals: with r = ReverseBits32(index) the shuffled index is i = Rev(LK(r, s0)),
-// dimension 0 of the Sobol point is Rev(i) and its scramble is Rev(LK(Rev(Rev(i)), s1)) =
-// Rev(LK(i, s1)); dimension 1's scramble Rev(LK(Rev(Sobol1(i)), s2)) takes Rev(Sobol1(i)) from
-// bit-reversed tables.
+// shifts and xors; 8 lanes fill one AVX2 register). Written out from OwenScramble32 to share bit
+// reversals: with r = ReverseBits32(index) the shuffled index is i = Rev(LK(r, s0)), dimension 0
+// of the Sobol point is Rev(i) and its scramble is Rev(LK(Rev(Rev(i)), s1)) = Rev(LK(i, s1));
+// dimension 1's scramble Rev(LK(Rev(Sobol1(i)), s2)) gets Rev(Sobol1(i)) from the table-free
+// SobolSample32Dim1Reversed.
 [[gnu::always_inline]] inline void ChunkBody(uint32_t reversedIndex, const uint32_t* __restrict s0,
                                              const uint32_t* __restrict s1,
                                              const uint32_t* __restrict s2, uint32_t* __restrict x,
