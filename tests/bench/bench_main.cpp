@@ -60,6 +60,8 @@ constexpr uint64_t kBakeSeed = 1;
 constexpr uint64_t kReferenceSeed = 0x5eed0001;
 constexpr int kReferenceOrder = 3;
 constexpr int kReferenceBatches = 64;
+// Paired tracer / raw Embree readings per scene (ThroughputInfo::pairedFractions).
+constexpr int kThroughputPairs = 3;
 
 struct Options {
   bool quick = false;
@@ -523,6 +525,17 @@ absl::Status Run(const Options& opt) {
                              double(tp.shadowRays) / (shadow->cpuMraysPerSecond * 1e6);
       tp.embreeOnlySamplingSeconds =
           tp.embreeOnlySeconds - double(tp.validityRays) / (probe->cpuMraysPerSecond * 1e6);
+      // Paired readings of the fraction (ThroughputInfo::pairedFractions).
+      v1::BakeSettings pairSettings = BaseSettings();
+      pairSettings.set_samples_per_probe(throughputSpp);
+      job.settings = ResolveSettings(pairSettings);
+      for (int k = 0; k < (opt.quick ? 1 : kThroughputPairs); ++k) {
+        PB_ASSIGN_OR_RETURN(const Timed t, TimedBake(job, 1, 1));
+        PB_ASSIGN_OR_RETURN(const RawRate rate,
+                            MeasureRawProbeRate(job, probes, opt.quick ? 0.05 : 0.25, 3));
+        tp.pairedFractions.push_back(double(t.volume.stats.rays) / t.cpu * 1e-6 /
+                                     rate.cpuMraysPerSecond);
+      }
       results.throughput.push_back(std::move(tp));
     }
   }

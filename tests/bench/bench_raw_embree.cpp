@@ -278,6 +278,38 @@ RawRate Measure(const std::string& what, const std::string& api, const TraceFn& 
   return rate;
 }
 
+// Probe rays: one jittered direction per (row, column) cell. Tiled order: 4x4 blocks of cells,
+// each made of two 4x2 halves made of two 2x2 quads, so every aligned run of 4, 8 or 16 rays is
+// a compact tile of neighbouring directions. Random order: a hash-keyed shuffle of every ray of
+// every probe.
+void MakeProbeRays(const std::vector<Vec3d>& probes, const Vec3d& offset, std::vector<Ray>* tiled,
+                   std::vector<Ray>* random) {
+  for (size_t p = 0; p < probes.size(); ++p) {
+    const Vec3f origin(probes[p] - offset);
+    IndependentSampler sampler(17, p);
+    std::vector<Ray> cells(kRows * kCols);
+    for (int row = 0; row < kRows; ++row) {
+      for (int col = 0; col < kCols; ++col) {
+        sampler.StartSample(uint64_t(row * kCols + col));
+        const Vec2d jitter = sampler.Get2D();
+        const Vec3d w = SampleUniformSphere({(row + jitter.x) / kRows, (col + jitter.y) / kCols});
+        cells[row * kCols + col] = {origin, Vec3f(w), kInf};
+      }
+    }
+    for (int br = 0; br < kRows; br += 4)
+      for (int bc = 0; bc < kCols; bc += 4)
+        for (int half = 0; half < 2; ++half)
+          for (int quad = 0; quad < 2; ++quad)
+            for (int r = 0; r < 2; ++r)
+              for (int c = 0; c < 2; ++c)
+                tiled->push_back(cells[(br + 2 * half + r) * kCols + bc + 2 * quad + c]);
+  }
+  std::vector<std::pair<uint64_t, size_t>> keys(tiled->size());
+  for (size_t i = 0; i < tiled->size(); ++i) keys[i] = {Hash(uint64_t(i), uint64_t(99)), i};
+  std::sort(keys.begin(), keys.end());
+  for (const auto& k : keys) random->push_back((*tiled)[k.second]);
+}
+
 }  // namespace
 
 const RawRate* RawEmbreeResult::Find(const std::string& rays, const std::string& api,
@@ -299,37 +331,8 @@ absl::StatusOr<RawEmbreeResult> MeasureRawEmbree(const BakeJob& job,
   result.buildSeconds = WallSeconds() - buildStart;
   const RTCScene scene = embree.scene();
 
-  // Probe rays: one jittered direction per (row, column) cell. Tiled order: 4x4 blocks of cells,
-  // each made of two 4x2 halves made of two 2x2 quads, so every aligned run of 4, 8 or 16 rays is
-  // a compact tile of neighbouring directions.
   std::vector<Ray> tiled, random;
-  for (size_t p = 0; p < probes.size(); ++p) {
-    const Vec3f origin(probes[p] - offset);
-    IndependentSampler sampler(17, p);
-    std::vector<Ray> cells(kRows * kCols);
-    for (int row = 0; row < kRows; ++row) {
-      for (int col = 0; col < kCols; ++col) {
-        sampler.StartSample(uint64_t(row * kCols + col));
-        const Vec2d jitter = sampler.Get2D();
-        const Vec3d w = SampleUniformSphere({(row + jitter.x) / kRows, (col + jitter.y) / kCols});
-        cells[row * kCols + col] = {origin, Vec3f(w), kInf};
-      }
-    }
-    for (int br = 0; br < kRows; br += 4)
-      for (int bc = 0; bc < kCols; bc += 4)
-        for (int half = 0; half < 2; ++half)
-          for (int quad = 0; quad < 2; ++quad)
-            for (int r = 0; r < 2; ++r)
-              for (int c = 0; c < 2; ++c)
-                tiled.push_back(cells[(br + 2 * half + r) * kCols + bc + 2 * quad + c]);
-  }
-  // Random order: a hash-keyed shuffle of every ray of every probe.
-  {
-    std::vector<std::pair<uint64_t, size_t>> keys(tiled.size());
-    for (size_t i = 0; i < tiled.size(); ++i) keys[i] = {Hash(uint64_t(i), uint64_t(99)), i};
-    std::sort(keys.begin(), keys.end());
-    for (const auto& k : keys) random.push_back(tiled[k.second]);
-  }
+  MakeProbeRays(probes, offset, &tiled, &random);
 
   // First hits of the random probe rays: origins of bounce and shadow rays.
   std::vector<Ray> bounce, shadow;
@@ -433,6 +436,21 @@ absl::StatusOr<RawEmbreeResult> MeasureRawEmbree(const BakeJob& job,
         shadow, 16);
   }
   return result;
+}
+
+absl::StatusOr<RawRate> MeasureRawProbeRate(const BakeJob& job, const std::vector<Vec3d>& probes,
+                                            double minSeconds, int repeats) {
+  const Vec3d offset = LocalOrigin(job.scene);
+  EmbreeScene embree;
+  int64_t triangles = 0;
+  PB_RETURN_IF_ERROR(embree.Build(job.scene, offset, &triangles));
+  const RTCScene scene = embree.scene();
+  std::vector<Ray> tiled, random;
+  MakeProbeRays(probes, offset, &tiled, &random);
+  const TraceFn i1 = [&](const std::vector<Ray>& r, size_t b, size_t e) {
+    return Intersect1(scene, r, b, e);
+  };
+  return Measure("probe random", "rtcIntersect1", i1, random, 1, minSeconds, repeats, 16);
 }
 
 }  // namespace probebake::bench

@@ -53,4 +53,9 @@ absl::StatusOr<RawEmbreeResult> MeasureRawEmbree(const BakeJob& job,
                                                  const std::vector<Vec3d>& probes,
                                                  double minSeconds, int repeats, int maxThreads);
 
+// The "probe random" rtcIntersect1 rate alone, at 1 thread: the denominator of the tracer's
+// fraction, quick enough to measure right after each of several tracer bakes (paired readings).
+absl::StatusOr<RawRate> MeasureRawProbeRate(const BakeJob& job, const std::vector<Vec3d>& probes,
+                                            double minSeconds, int repeats);
+
 }  // namespace probebake::bench

@@ -17,6 +17,15 @@ constexpr double kMiB = 1024.0 * 1024.0;
 // Error levels of the time-to-error tables.
 constexpr double kErrorLevels[] = {0.1, 0.05, 0.02, 0.01, 0.005, 0.002};
 
+// "median 0.57 (0.55 to 0.59, 3 pairs)", or "-" with no readings.
+std::string PairedText(std::vector<double> fractions) {
+  if (fractions.empty()) return "-";
+  std::sort(fractions.begin(), fractions.end());
+  if (fractions.size() == 1) return Format("%.2f (1 pair)", fractions[0]);
+  return Format("median %.2f (%.2f to %.2f, %zu pairs)", Median(fractions), fractions.front(),
+                fractions.back(), fractions.size());
+}
+
 std::string Pct(double fraction, int digits = 3) {
   if (!(fraction >= 0) || !std::isfinite(fraction)) return "-";
   return Format("%.*g%%", digits, 100 * fraction);
@@ -398,9 +407,9 @@ std::string Markdown(const BenchResults& r) {
     const double samplingMrays = double(tp.rays - tp.setupRays) / samplingCpu * 1e-6;
     md += Format(
         "- Throughput, %s: %.3g Mrays/CPU-s, %.2f of raw rtcIntersect1 probe rays "
-        "(%.2f in the sampling phase).\n",
+        "(%.2f in the sampling phase); back-to-back pairs of the two: %s.\n",
         tp.scene.c_str(), tp.tracerCpuMrays, tp.tracerCpuMrays / raw->cpuMraysPerSecond,
-        samplingMrays / raw->cpuMraysPerSecond);
+        samplingMrays / raw->cpuMraysPerSecond, PairedText(tp.pairedFractions).c_str());
   }
   if (!r.scaling.wall1.empty()) {
     const double w1 = *std::min_element(r.scaling.wall1.begin(), r.scaling.wall1.end());
@@ -630,23 +639,27 @@ std::string Markdown(const BenchResults& r) {
       "needs for the bake's own ray mix (first-hit and validity rays at the probe-ray rate, "
       "continuation rays at the bounce rate, shadow rays at the rtcOccluded1 rate) over the "
       "bake's CPU time: the fraction of the bake spent in Embree if Embree ran as fast as it "
-      "does alone.\n\n| scene | triangles | samples/probe | rays (intersect / shadow) | bake "
+      "does alone. \"Paired\": the same fraction from a tracer bake and a raw Embree reading taken "
+      "right after it, repeated; the median and range of those ratios, steadier on a shared "
+      "machine than the columns before it, whose halves were measured minutes apart.\n\n| scene | "
+      "triangles | samples/probe | rays (intersect / shadow) | bake "
       "CPU s (setup) | tracer Mrays/CPU-s (sampling phase) | raw probe rays Mrays/CPU-s | "
-      "fraction, whole bake (sampling phase) | Embree share, whole bake (sampling phase) |\n"
-      "|---|---|---|---|---|---|---|---|---|\n";
+      "fraction, whole bake (sampling phase) | fraction, paired | Embree share, whole bake "
+      "(sampling phase) |\n"
+      "|---|---|---|---|---|---|---|---|---|---|\n";
   for (const ThroughputInfo& tp : r.throughput) {
     const RawRate* raw = tp.raw.Find("probe random", "rtcIntersect1", 1);
     const double samplingCpu = tp.bakeCpuSeconds - tp.setupCpuSeconds;
     const double samplingMrays = double(tp.rays - tp.setupRays) / samplingCpu * 1e-6;
     md += Format(
         "| %s | %lld | %lld | %lld / %lld | %.3g (%.3g) | %.3g (%.3g) | %.3g | %.2f "
-        "(%.2f) | %.2f (%.2f) |\n",
+        "(%.2f) | %s | %.2f (%.2f) |\n",
         tp.scene.c_str(), (long long)tp.raw.triangles,
         (long long)(tp.samples / std::max<int64_t>(tp.raw.probes, 1)), (long long)tp.intersectRays,
         (long long)tp.shadowRays, tp.bakeCpuSeconds, tp.setupCpuSeconds, tp.tracerCpuMrays,
         samplingMrays, raw->cpuMraysPerSecond, tp.tracerCpuMrays / raw->cpuMraysPerSecond,
-        samplingMrays / raw->cpuMraysPerSecond, tp.embreeOnlySeconds / tp.bakeCpuSeconds,
-        tp.embreeOnlySamplingSeconds / samplingCpu);
+        samplingMrays / raw->cpuMraysPerSecond, PairedText(tp.pairedFractions).c_str(),
+        tp.embreeOnlySeconds / tp.bakeCpuSeconds, tp.embreeOnlySamplingSeconds / samplingCpu);
   }
   md +=
       "\nRaw Embree, Mrays/s (per wall second at 1 and 2 threads; per CPU second of the tracing "
@@ -823,6 +836,13 @@ std::string JsonNumber(double v) {
   return std::isfinite(v) ? Format("%.9g", v) : "null";
 }
 
+// Comma-separated JSON numbers.
+std::string JoinNumbers(const std::vector<double>& values) {
+  std::string out;
+  for (size_t i = 0; i < values.size(); ++i) out += (i ? ", " : "") + JsonNumber(values[i]);
+  return out;
+}
+
 std::string Json(const BenchResults& r) {
   std::string j = "{\n";
   j += "  \"date\": " + JsonString(r.date) + ",\n  \"host\": " + JsonString(r.host) +
@@ -882,13 +902,14 @@ std::string Json(const BenchResults& r) {
         "    {\"scene\": %s, \"triangles\": %lld, \"tracerCpuMrays\": %s, "
         "\"tracerWallMrays\": %s, \"rays\": %lld, \"intersectRays\": %lld, "
         "\"shadowRays\": %lld, \"embreeShare\": %s, \"bakeCpuSeconds\": %s, "
-        "\"setupCpuSeconds\": %s, \"setupRays\": %lld, \"raw\": [",
+        "\"setupCpuSeconds\": %s, \"setupRays\": %lld, \"pairedFractions\": [%s], "
+        "\"raw\": [",
         JsonString(tp.scene).c_str(), (long long)tp.raw.triangles,
         JsonNumber(tp.tracerCpuMrays).c_str(), JsonNumber(tp.tracerWallMrays).c_str(),
         (long long)tp.rays, (long long)tp.intersectRays, (long long)tp.shadowRays,
         JsonNumber(tp.embreeOnlySeconds / tp.bakeCpuSeconds).c_str(),
         JsonNumber(tp.bakeCpuSeconds).c_str(), JsonNumber(tp.setupCpuSeconds).c_str(),
-        (long long)tp.setupRays);
+        (long long)tp.setupRays, JoinNumbers(tp.pairedFractions).c_str());
     for (size_t k = 0; k < tp.raw.rates.size(); ++k) {
       const RawRate& rr = tp.raw.rates[k];
       j += Format(

@@ -59,6 +59,11 @@ struct ThroughputInfo {
   double setupCpuSeconds = 0;
   int64_t setupRays = 0;
   RawEmbreeResult raw;
+  // Paired readings: a tracer bake (default settings, 1 thread) and the raw probe-ray rate
+  // measured right after it, several times; each pair's ratio of rays per CPU second. Load that
+  // changes during the run moves both halves of a pair alike, so their median is steadier than
+  // the ratio of two measurements taken minutes apart.
+  std::vector<double> pairedFractions;
 };
 
 struct ScalingInfo {
