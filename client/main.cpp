@@ -126,6 +126,8 @@ JobLimits LimitsFrom(const v1::JobLimits& l) {
 int RunBake(const std::string& jobPath, const std::string& out, int threads, bool json) {
   absl::StatusOr<BakeJob> job = LoadBakeJob(jobPath, JobLimits());
   if (!job.ok()) return Fail(kExitUsage, std::string(job.status().message()));
+  if (absl::Status writable = CheckOutputWritable(out); !writable.ok())
+    return Fail(kExitUsage, std::string(writable.message()));
   // Ctrl-C cancels the bake cleanly (exit 3) instead of killing it.
   struct sigaction action = {};
   action.sa_handler = OnInterrupt;
@@ -189,6 +191,8 @@ int RunInspect(const std::string& path, bool json, const std::string& slice,
 
 // Merges the volumes of a sharded bake (volume_merge.h) into `out`.
 int RunMerge(const std::vector<std::string>& inputs, const std::string& out) {
+  if (absl::Status writable = CheckOutputWritable(out); !writable.ok())
+    return Fail(kExitUsage, std::string(writable.message()));
   std::vector<VolumePart> parts;
   for (const std::string& input : inputs) {
     absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(input);
@@ -249,6 +253,10 @@ int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
               const std::string& out, bool skipCache, std::string requestId) {
   absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
   if (!spec.ok()) return Fail(kExitUsage, std::string(spec.status().message()));
+  if (!out.empty()) {
+    if (absl::Status writable = CheckOutputWritable(out); !writable.ok())
+      return Fail(kExitUsage, std::string(writable.message()));
+  }
   auto client = ConnectFrom(flags);
   if (!client.ok()) return Fail(client.status());
   absl::StatusOr<v1::ServerCapabilities> capabilities = (*client)->GetCapabilities();

@@ -228,6 +228,17 @@ TEST(EndToEnd, CliExitCodes) {
   EXPECT_EQ(unknown.exitCode, 2);
   EXPECT_NE(unknown.err.find("unknown.json"), std::string::npos) << unknown.err;
   EXPECT_NE(unknown.err.find("settings.sampels"), std::string::npos) << unknown.err;
+  // 2: an output path that cannot be written fails before the bake, so a mistyped -o costs no
+  // baking: no progress line is printed (a bake that ran prints at least its final one).
+  const std::string unwritablePath = (dir.path() / "missing" / "x.vdb").string();
+  RunResult unwritable = Cli({"bake", job.string(), "-o", unwritablePath, "--json"});
+  EXPECT_EQ(unwritable.exitCode, 2);
+  EXPECT_NE(unwritable.err.find(unwritablePath), std::string::npos) << unwritable.err;
+  EXPECT_EQ(unwritable.out, "") << "the bake ran before its output path was checked";
+  RunResult intoDirectory = Cli({"bake", job.string(), "-o", dir.path().string(), "--json"});
+  EXPECT_EQ(intoDirectory.exitCode, 2);
+  EXPECT_NE(intoDirectory.err.find("is a directory"), std::string::npos) << intoDirectory.err;
+  EXPECT_EQ(intoDirectory.out, "");
   RunResult usage = Cli({"bake"});
   EXPECT_EQ(usage.exitCode, 2);
   RunResult noCommand = Cli({});

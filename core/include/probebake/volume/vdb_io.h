@@ -105,6 +105,12 @@ absl::Status WriteProbeVolume(const std::string& path, const ProbeVolume& volume
 absl::Status WriteProbeVolume(const std::string& path, ProbeVolume&& volume,
                               const VolumeMetadata& meta);
 
+// Whether a volume could be written to `path` now: its directory exists and takes a new file (a
+// temporary one is created and removed), and `path` is not a directory. For callers about to spend
+// minutes or hours on what they will write there, so a mistyped path fails first; the write can
+// still fail later (a full disk). Errors name the path.
+absl::Status CheckOutputWritable(const std::string& path);
+
 // A probe volume file read back.
 struct ProbeVolumeFile {
   ProbeVolume volume;
