@@ -123,11 +123,18 @@ JobLimits LimitsFrom(const v1::JobLimits& l) {
 
 // ---- bake (local) ----
 
+// Before work that ends in writing `out`: kExitUsage with the reason if it cannot be written (a
+// mistyped path fails at once, not after the bake), else kExitOk.
+int CheckOutput(const std::string& out) {
+  if (absl::Status writable = CheckOutputWritable(out); !writable.ok())
+    return Fail(kExitUsage, std::string(writable.message()));
+  return kExitOk;
+}
+
 int RunBake(const std::string& jobPath, const std::string& out, int threads, bool json) {
   absl::StatusOr<BakeJob> job = LoadBakeJob(jobPath, JobLimits());
   if (!job.ok()) return Fail(kExitUsage, std::string(job.status().message()));
-  if (absl::Status writable = CheckOutputWritable(out); !writable.ok())
-    return Fail(kExitUsage, std::string(writable.message()));
+  if (const int code = CheckOutput(out); code != kExitOk) return code;
   // Ctrl-C cancels the bake cleanly (exit 3) instead of killing it.
   struct sigaction action = {};
   action.sa_handler = OnInterrupt;
@@ -191,8 +198,7 @@ int RunInspect(const std::string& path, bool json, const std::string& slice,
 
 // Merges the volumes of a sharded bake (volume_merge.h) into `out`.
 int RunMerge(const std::vector<std::string>& inputs, const std::string& out) {
-  if (absl::Status writable = CheckOutputWritable(out); !writable.ok())
-    return Fail(kExitUsage, std::string(writable.message()));
+  if (const int code = CheckOutput(out); code != kExitOk) return code;
   std::vector<VolumePart> parts;
   for (const std::string& input : inputs) {
     absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(input);
@@ -254,8 +260,7 @@ int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
   absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
   if (!spec.ok()) return Fail(kExitUsage, std::string(spec.status().message()));
   if (!out.empty()) {
-    if (absl::Status writable = CheckOutputWritable(out); !writable.ok())
-      return Fail(kExitUsage, std::string(writable.message()));
+    if (const int code = CheckOutput(out); code != kExitOk) return code;
   }
   auto client = ConnectFrom(flags);
   if (!client.ok()) return Fail(client.status());

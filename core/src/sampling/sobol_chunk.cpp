@@ -5,8 +5,9 @@
 namespace probebake {
 namespace {
 
-// One body for both targets: the compiler vectorises the lane loop for each (32-bit multiplies,
-// shifts and xors; 8 lanes fill one AVX2 register). Written out from OwenScramble32 to share bit
+// One body for both targets: for AVX2 the compiler vectorises the lane loop (32-bit multiplies,
+// shifts and xors; 8 lanes fill one register); the generic build stays scalar, as SSE2 has no
+// 32-bit multiply. Written out from OwenScramble32 to share bit
 // reversals: with r = ReverseBits32(index) the shuffled index is i = Rev(LK(r, s0)), dimension 0
 // of the Sobol point is Rev(i) and its scramble is Rev(LK(Rev(Rev(i)), s1)) = Rev(LK(i, s1));
 // dimension 1's scramble Rev(LK(Rev(Sobol1(i)), s2)) gets Rev(Sobol1(i)) from the table-free

@@ -1,6 +1,7 @@
 #include "atomic_file.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -45,6 +46,10 @@ absl::StatusOr<AtomicFile> AtomicFile::Create(const std::string& path) {
   if (path.empty() || path.back() == '/') {
     return absl::InvalidArgumentError("'" + path + "': not a file path");
   }
+  // Found now rather than when the rename over it fails, after the content was written.
+  struct stat info;
+  if (::stat(path.c_str(), &info) == 0 && S_ISDIR(info.st_mode))
+    return absl::InvalidArgumentError(path + ": is a directory, not a file path");
   const auto [dir, name] = SplitPath(path);
   for (int attempt = 0; attempt < 100; ++attempt) {
     const uint64_t n = g_tempCounter.fetch_add(1, std::memory_order_relaxed);

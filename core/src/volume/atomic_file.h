@@ -12,7 +12,7 @@ namespace probebake::volume_internal {
 class AtomicFile {
  public:
   // Creates an empty temporary file "<dir>/.<name>.<pid>.<n>.tmp" beside `path` (mode 0666 less
-  // the umask, as a plain open would). Errors name `path`.
+  // the umask, as a plain open would). Refuses a `path` that is a directory. Errors name `path`.
   static absl::StatusOr<AtomicFile> Create(const std::string& path);
 
   AtomicFile(AtomicFile&& other) noexcept;

@@ -1,8 +1,6 @@
 // WriteProbeVolume: builds the grids of SPEC 5 one at a time and streams each into the file as
 // soon as it is built, through OpenVDB's own archive writer (openvdb::io::Archive), so the file
 // is exactly what openvdb::io::File::write would produce but never holds every grid in memory.
-#include <sys/stat.h>
-
 #include <cerrno>
 #include <fstream>
 #include <memory>
@@ -260,15 +258,6 @@ absl::Status WriteProbeVolume(const std::string& path, const ProbeVolume& volume
   return WriteImpl(path, volume, meta, nullptr);
 }
 
-absl::Status CheckOutputWritable(const std::string& path) {
-  struct stat info;
-  if (::stat(path.c_str(), &info) == 0 && S_ISDIR(info.st_mode))
-    return absl::InvalidArgumentError(path + ": is a directory, not a file path");
-  PB_ASSIGN_OR_RETURN(volume_internal::AtomicFile probe, volume_internal::AtomicFile::Create(path));
-  probe.Abort();
-  return absl::OkStatus();
-}
-
 absl::Status WriteProbeVolume(const std::string& path, ProbeVolume&& volume,
                               const VolumeMetadata& meta) {
   // Not written to the file: freed before the first grid is built, so the memory they hold (as
@@ -284,6 +273,12 @@ absl::Status WriteProbeVolume(const std::string& path, ProbeVolume&& volume,
     std::vector<float>().swap(*values);
   }
   return status;
+}
+
+absl::Status CheckOutputWritable(const std::string& path) {
+  PB_ASSIGN_OR_RETURN(volume_internal::AtomicFile probe, volume_internal::AtomicFile::Create(path));
+  probe.Abort();
+  return absl::OkStatus();
 }
 
 }  // namespace probebake

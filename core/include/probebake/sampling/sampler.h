@@ -17,7 +17,8 @@
 //
 // SobolSampler: dimension set d of sample i is the point with index OwenScramble(i, s0) of the
 // first one (Get1D) or two (Get2D) Sobol dimensions, each coordinate Owen-scrambled with its own
-// seed, where s0, s1, s2 are 32-bit pieces of Hash(seed, stream, d). Hence:
+// seed, where s0 and s1 are the halves of Hash(seed, stream, d) and s2 32 bits of a remix of it.
+// Hence:
 //   - for each dimension set, the first 2^k samples of a stream are a (0, k, 2)-net (Get2D) or
 //     one point per interval [j 2^-k, (j+1) 2^-k) (Get1D): index shuffling by a nested scramble
 //     maps the indices 0..2^k-1 onto an aligned block of 2^k Sobol indices;
