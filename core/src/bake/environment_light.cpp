@@ -43,6 +43,7 @@ EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
   PB_CHECK(map_ != nullptr);
   PB_CHECK_GT(map_->width, 0);
   PB_CHECK_GT(map_->height, 0);
+  scale_ = map_->scale;
   worldFromMap_ = map_->worldFromMap;
   mapFromWorld_ = Transpose(worldFromMap_);
   const int w = map_->width, h = map_->height;
@@ -66,30 +67,28 @@ EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
     }
   }
   std::vector<double> weights(size_t(w) * h);
-  cellSolidAngle_.resize(weights.size());
   double sum = 0;
   for (int iy = 0; iy < h; ++iy) {
     for (int ix = 0; ix < w; ++ix) {
-      const Cell c = CellBounds(ix, iy);
-      const double solidAngle = (c.lon1 - c.lon0) * (c.z1 - c.z0);
+      const double solidAngle = CellSolidAngle(ix, iy);
       const size_t k = size_t(iy) * w + ix;
       const float* rgb = &map_->rgb[3 * k];
       const double lum = map_->scale * Luminance(Vec3d(rgb[0], rgb[1], rgb[2]));
-      cellSolidAngle_[k] = solidAngle;
       weights[k] = std::max(0.0, lum) * solidAngle;
       sum += weights[k];
     }
   }
   black_ = !(sum > 0);
   importance_ = sum / (4 * kPi) * kPi;
-  if (!black_) distribution_ = std::make_unique<PiecewiseConstant2D>(weights, h, w);
+  // The texels ride in the distribution's entries: sampling and pdf lookups read them there.
+  if (!black_) distribution_ = std::make_unique<PiecewiseConstant2D>(weights, h, w, map_->rgb);
 }
 
 EnvironmentLight::Cell EnvironmentLight::CellBounds(int ix, int iy) const {
   return {columnLon0_[ix], columnLon1_[ix], rowZ0_[iy], rowZ1_[iy]};
 }
 
-int EnvironmentLight::CellIndex(const Vec3d& d) const {
+EnvironmentLight::CellIndex EnvironmentLight::CellOf(const Vec3d& d) const {
   const int w = map_->width, h = map_->height;
   int ix = 0, iy = 0;
   if (w > 1) {
@@ -102,15 +101,15 @@ int EnvironmentLight::CellIndex(const Vec3d& d) const {
     const double y = (0.5 - lat / kPi) * (h - 1);
     iy = std::clamp(int(std::lround(y)), 0, h - 1);
   }
-  return iy * w + ix;
+  return {ix, iy};
 }
 
 Vec3d EnvironmentLight::Radiance(const Vec3d& wi) const {
   if (black_) return {};
   if (kind_ == Environment::Kind::kUniform) return uniform_;
-  const int k = CellIndex(mapFromWorld_ * wi);
-  const float* rgb = &map_->rgb[3 * size_t(k)];
-  return Vec3d(rgb[0], rgb[1], rgb[2]) * map_->scale;
+  const CellIndex cell = CellOf(mapFromWorld_ * wi);
+  const float* rgb = distribution_->Payload(cell.iy, cell.ix);
+  return Vec3d(rgb[0], rgb[1], rgb[2]) * scale_;
 }
 
 Vec3d EnvironmentLight::Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double* pdf) const {
@@ -131,7 +130,6 @@ Vec3d EnvironmentLight::Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double
   const int ix = int(s.col), iy = int(s.row);
   const double pmf = s.pmf;
   const Vec2d uCell = s.uRemapped;
-  const size_t k = size_t(iy) * map_->width + ix;
   const Cell c = CellBounds(ix, iy);
   // Uniform in solid angle inside the cell: longitude and sin(latitude) uniform.
   const double lon = c.lon0 + uCell.x * (c.lon1 - c.lon0);
@@ -140,9 +138,9 @@ Vec3d EnvironmentLight::Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double
   const SinCos sc = SinCosTurns(lon * (0.5 / kPi));
   const Vec3d mapDir{r * sc.sin, z, r * sc.cos};
   *wi = worldFromMap_ * mapDir;
-  *pdf = pmf / cellSolidAngle_[k];
-  const float* rgb = &map_->rgb[3 * k];
-  return Vec3d(rgb[0], rgb[1], rgb[2]) * map_->scale;
+  *pdf = pmf / CellSolidAngle(ix, iy);
+  const float* rgb = s.payload;
+  return Vec3d(rgb[0], rgb[1], rgb[2]) * scale_;
 }
 
 double EnvironmentLight::Pdf(const Vec3d& wi, const Vec3d* n) const {
@@ -151,9 +149,8 @@ double EnvironmentLight::Pdf(const Vec3d& wi, const Vec3d* n) const {
     if (n) return CosineHemispherePdf(std::max(0.0, Dot(wi, *n)));
     return UniformSpherePdf();
   }
-  const int k = CellIndex(mapFromWorld_ * wi);
-  const int iy = k / map_->width, ix = k % map_->width;
-  return distribution_->Pmf(iy, ix) / cellSolidAngle_[k];
+  const CellIndex cell = CellOf(mapFromWorld_ * wi);
+  return distribution_->Pmf(cell.iy, cell.ix) / CellSolidAngle(cell.ix, cell.iy);
 }
 
 Vec3d EnvironmentLight::RadianceAndPdf(const Vec3d& wi, const Vec3d* n, double* pdf) const {
@@ -163,10 +160,10 @@ Vec3d EnvironmentLight::RadianceAndPdf(const Vec3d& wi, const Vec3d* n, double* 
     *pdf = Pdf(wi, n);
     return uniform_;
   }
-  const int k = CellIndex(mapFromWorld_ * wi);
-  const float* rgb = &map_->rgb[3 * size_t(k)];
-  *pdf = distribution_->Pmf(k / map_->width, k % map_->width) / cellSolidAngle_[k];
-  return Vec3d(rgb[0], rgb[1], rgb[2]) * map_->scale;
+  const CellIndex cell = CellOf(mapFromWorld_ * wi);
+  const float* rgb = distribution_->Payload(cell.iy, cell.ix);
+  *pdf = distribution_->Pmf(cell.iy, cell.ix) / CellSolidAngle(cell.ix, cell.iy);
+  return Vec3d(rgb[0], rgb[1], rgb[2]) * scale_;
 }
 
 }  // namespace probebake

@@ -44,15 +44,25 @@ class EnvironmentLight {
     double lon0, lon1;  // longitude range (lon0 < lon1)
     double z0, z1;      // sin(latitude) range (z0 < z1)
   };
-  int CellIndex(const Vec3d& mapDir) const;
+  struct CellIndex {
+    int ix, iy;  // column, row
+  };
+  CellIndex CellOf(const Vec3d& mapDir) const;
   Cell CellBounds(int ix, int iy) const;
+  // Solid angle of cell (ix, iy): its longitude range times its sin(latitude) range. Computed,
+  // not tabled: a table per texel would be one more cache miss per sample of a large map.
+  double CellSolidAngle(int ix, int iy) const {
+    return (columnLon1_[ix] - columnLon0_[ix]) * (rowZ1_[iy] - rowZ0_[iy]);
+  }
 
   Environment::Kind kind_;
   bool black_ = true;
   Vec3d uniform_;
   std::shared_ptr<const EnvironmentMap> map_;
+  // map_'s scale, held here: sampling reads it without a pointer chase (the texels are in
+  // distribution_'s entries).
+  double scale_ = 1;
   Mat3d worldFromMap_, mapFromWorld_;
-  std::vector<double> cellSolidAngle_;                           // per pixel
   std::vector<double> columnLon0_, columnLon1_, rowZ0_, rowZ1_;  // cell bounds (CellBounds)
   std::unique_ptr<PiecewiseConstant2D> distribution_;
   double importance_ = 0;
