@@ -255,50 +255,6 @@ TEST(PiecewiseConstant2D, PmfSamplingAndRemapping) {
   EXPECT_TRUE(r2.pass) << "remapped u: " << r2.ToString();
 }
 
-// The flat table behaves exactly as its definition: a DiscreteDistribution over the rows' totals,
-// then the chosen row's own DiscreteDistribution. Same cell, pmf and remapped u to the bit, and
-// every cell's payload comes back with it.
-TEST(PiecewiseConstant2D, EqualsMarginalThenRowDistributionsBitForBit) {
-  constexpr int rows = 37, cols = 53;
-  std::vector<double> w = RandomWeights(rows * cols, 11, 0.2);
-  for (int c = 0; c < cols; ++c) w[5 * cols + c] = 0;  // a black row
-  w[20 * cols + 7] = 1e8;                              // a sun
-  std::vector<float> payload(3 * w.size());
-  for (size_t i = 0; i < payload.size(); ++i) payload[i] = float(i) * 0.5f;
-  const PiecewiseConstant2D d(w, rows, cols, payload);
-
-  std::vector<DiscreteDistribution> rowDists;
-  std::vector<double> totals;
-  for (int r = 0; r < rows; ++r) {
-    rowDists.emplace_back(std::span<const double>(w).subspan(size_t(r) * cols, cols));
-    totals.push_back(rowDists.back().Total());
-  }
-  const DiscreteDistribution marginal(totals);
-  for (int r = 0; r < rows; ++r) {
-    for (int c = 0; c < cols; ++c) {
-      ASSERT_EQ(d.Pmf(r, c), marginal.Pmf(r) * rowDists[r].Pmf(c)) << r << ", " << c;
-      for (int k = 0; k < 3; ++k) ASSERT_EQ(d.Payload(r, c)[k], payload[3 * (r * cols + c) + k]);
-    }
-  }
-  IndependentSampler s(27, 0);
-  for (int n = 0; n < 200000; ++n) {
-    s.StartSample(n);
-    const Vec2d u = s.Get2D();
-    const PiecewiseConstant2DSample x = d.Sample(u);
-    const DiscreteSample row = marginal.Sample(u.y);
-    const DiscreteSample col = rowDists[row.index].Sample(u.x);
-    ASSERT_EQ(x.row, row.index);
-    ASSERT_EQ(x.col, col.index);
-    ASSERT_EQ(x.pmf, row.pmf * col.pmf);
-    ASSERT_EQ(x.uRemapped.x, col.uRemapped);
-    ASSERT_EQ(x.uRemapped.y, row.uRemapped);
-    ASSERT_EQ(x.payload, d.Payload(x.row, x.col));
-    const Vec2d back = d.Invert(x.row, x.col, x.uRemapped);
-    ASSERT_EQ(back.x, rowDists[x.row].Invert(x.col, x.uRemapped.x));
-    ASSERT_EQ(back.y, marginal.Invert(x.row, x.uRemapped.y));
-  }
-}
-
 TEST(PiecewiseConstant2D, AllZeroIsUniform) {
   const std::vector<double> w(6 * 4, 0.0);
   const PiecewiseConstant2D d(w, 6, 4);

@@ -43,7 +43,9 @@ EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
   PB_CHECK(map_ != nullptr);
   PB_CHECK_GT(map_->width, 0);
   PB_CHECK_GT(map_->height, 0);
+  rgb_ = map_->rgb.data();
   scale_ = map_->scale;
+  width_ = map_->width;
   worldFromMap_ = map_->worldFromMap;
   mapFromWorld_ = Transpose(worldFromMap_);
   const int w = map_->width, h = map_->height;
@@ -80,8 +82,7 @@ EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
   }
   black_ = !(sum > 0);
   importance_ = sum / (4 * kPi) * kPi;
-  // The texels ride in the distribution's entries: sampling and pdf lookups read them there.
-  if (!black_) distribution_ = std::make_unique<PiecewiseConstant2D>(weights, h, w, map_->rgb);
+  if (!black_) distribution_ = std::make_unique<PiecewiseConstant2D>(weights, h, w);
 }
 
 EnvironmentLight::Cell EnvironmentLight::CellBounds(int ix, int iy) const {
@@ -108,7 +109,7 @@ Vec3d EnvironmentLight::Radiance(const Vec3d& wi) const {
   if (black_) return {};
   if (kind_ == Environment::Kind::kUniform) return uniform_;
   const CellIndex cell = CellOf(mapFromWorld_ * wi);
-  const float* rgb = distribution_->Payload(cell.iy, cell.ix);
+  const float* rgb = Texel(cell.ix, cell.iy);
   return Vec3d(rgb[0], rgb[1], rgb[2]) * scale_;
 }
 
@@ -139,7 +140,7 @@ Vec3d EnvironmentLight::Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double
   const Vec3d mapDir{r * sc.sin, z, r * sc.cos};
   *wi = worldFromMap_ * mapDir;
   *pdf = pmf / CellSolidAngle(ix, iy);
-  const float* rgb = s.payload;
+  const float* rgb = Texel(ix, iy);
   return Vec3d(rgb[0], rgb[1], rgb[2]) * scale_;
 }
 
@@ -161,7 +162,7 @@ Vec3d EnvironmentLight::RadianceAndPdf(const Vec3d& wi, const Vec3d* n, double* 
     return uniform_;
   }
   const CellIndex cell = CellOf(mapFromWorld_ * wi);
-  const float* rgb = distribution_->Payload(cell.iy, cell.ix);
+  const float* rgb = Texel(cell.ix, cell.iy);
   *pdf = distribution_->Pmf(cell.iy, cell.ix) / CellSolidAngle(cell.ix, cell.iy);
   return Vec3d(rgb[0], rgb[1], rgb[2]) * scale_;
 }

@@ -48,6 +48,7 @@ class EnvironmentLight {
     int ix, iy;  // column, row
   };
   CellIndex CellOf(const Vec3d& mapDir) const;
+  const float* Texel(int ix, int iy) const { return rgb_ + 3 * (size_t(iy) * width_ + ix); }
   Cell CellBounds(int ix, int iy) const;
   // Solid angle of cell (ix, iy): its longitude range times its sin(latitude) range. Computed,
   // not tabled: a table per texel would be one more cache miss per sample of a large map.
@@ -59,9 +60,10 @@ class EnvironmentLight {
   bool black_ = true;
   Vec3d uniform_;
   std::shared_ptr<const EnvironmentMap> map_;
-  // map_'s scale, held here: sampling reads it without a pointer chase (the texels are in
-  // distribution_'s entries).
+  // map_'s texels, scale and width, held here: sampling reads them without a pointer chase.
+  const float* rgb_ = nullptr;
   double scale_ = 1;
+  int width_ = 0;
   Mat3d worldFromMap_, mapFromWorld_;
   std::vector<double> columnLon0_, columnLon1_, rowZ0_, rowZ1_;  // cell bounds (CellBounds)
   std::unique_ptr<PiecewiseConstant2D> distribution_;

@@ -16,10 +16,7 @@
 //     tell the case apart (e.g. skip a black environment).
 //   - Preconditions (checked, they are bugs, not user input): n >= 1, n < 2^32, weights finite
 //     and >= 0, u in [0, 1).
-// Sampling is O(1) expected: a guide table of n buckets narrows the binary search. Each CDF
-// value is stored beside the guide entry of the same index, so where the CDF is near linear the
-// guide lookup and the CDF values it leads to share a cache line: a 2048 x 1024 environment map's
-// table is tens of MiB, read at random, and each separate array was one more cache miss.
+// Sampling is O(1) expected: a guide table of n buckets narrows the binary search.
 //
 // PiecewiseConstant2D(weights, rows, cols): a row-major table (weights[row * cols + col]), for
 // environment maps. u.y picks the row from the marginal (row sums), u.x the column from that row's
@@ -27,9 +24,7 @@
 // ((col + uRemapped.x) / cols, (row + uRemapped.y) / rows), whose density per unit area of
 // [0,1]^2 is pmf * rows * cols. All-zero tables are uniform as above. Weights are per cell: for
 // a latitude-longitude map the caller folds the cells' sin(theta) solid-angle factor into them.
-// All rows live in one array (no per-row allocation to chase), each cell's entry carrying the
-// caller's 3-float payload (the texel's RGB) beside its CDF value. Both classes are immutable after
-// construction; const methods may be called from any thread.
+// Both classes are immutable after construction; const methods may be called from any thread.
 #pragma once
 
 #include <cstdint>
@@ -46,65 +41,39 @@ struct DiscreteSample {
   double uRemapped = 0;  // (u - cdf_index) / pmf, uniform in [0, 1) given index
 };
 
-namespace detail {
-// cdf_i and the guide entry g_i of one index, side by side (one array of n + 1 of them).
-struct CdfEntry {
-  double cdf;
-  uint32_t guide;  // first i with Bucket(cdf_{i+1}) >= b, for b = this entry's index
-};
-// The same with three floats of the caller's data about index i (PiecewiseConstant2D's payload).
-struct CdfPayloadEntry {
-  double cdf;
-  uint32_t guide;
-  float payload[3];
-};
-// Fills n + 1 entries from n weights as DiscreteDistribution documents; returns the compensated
-// total of the weights. Entry: CdfEntry or CdfPayloadEntry.
-template <typename Entry>
-double BuildCdf(std::span<const double> weights, Entry* entries);
-template <typename Entry>
-DiscreteSample SampleCdf(const Entry* entries, int64_t n, double u);
-template <typename Entry>
-double InvertCdf(const Entry* entries, int64_t index, double uRemapped);
-}  // namespace detail
-
 class DiscreteDistribution {
  public:
   explicit DiscreteDistribution(std::span<const double> weights);
 
-  int64_t Size() const { return static_cast<int64_t>(entries_.size()) - 1; }
+  int64_t Size() const { return static_cast<int64_t>(cdf_.size()) - 1; }
   // Compensated sum of the weights; 0 exactly when all weights are 0.
   double Total() const { return total_; }
 
-  DiscreteSample Sample(double u) const { return detail::SampleCdf(entries_.data(), Size(), u); }
+  DiscreteSample Sample(double u) const;
   // Precondition: 0 <= index < Size().
-  double Pmf(int64_t index) const { return entries_[index + 1].cdf - entries_[index].cdf; }
+  double Pmf(int64_t index) const { return cdf_[index + 1] - cdf_[index]; }
   // The u in [0, 1) that Sample maps to (index, uRemapped); uRemapped in [0, 1).
   // Precondition: Pmf(index) > 0.
-  double Invert(int64_t index, double uRemapped) const {
-    return detail::InvertCdf(entries_.data(), index, uRemapped);
-  }
+  double Invert(int64_t index, double uRemapped) const;
 
  private:
-  std::vector<detail::CdfEntry> entries_;  // n + 1; entries_[0].cdf = 0, entries_[n].cdf = 1
+  std::vector<double> cdf_;      // n + 1 entries, cdf_[0] = 0, cdf_[n] = 1
+  std::vector<uint32_t> guide_;  // guide_[b]: first i with Bucket(cdf_[i + 1]) >= b; n + 1 entries
   double total_ = 0;
+
+  int64_t Bucket(double u) const;
 };
 
 struct PiecewiseConstant2DSample {
   int64_t row = 0, col = 0;
   double pmf = 0;   // probability of the cell (row, col), > 0
   Vec2d uRemapped;  // position inside the cell: x along columns, y along rows, in [0, 1)^2
-  const float* payload = nullptr;  // the cell's 3 payload floats
 };
 
 class PiecewiseConstant2D {
  public:
-  // Preconditions (checked): rows, cols >= 1, weights.size() == rows * cols, and `payload`
-  // empty (zeros) or 3 floats per cell in the same order: data the caller needs with each sample
-  // (an environment map's texel RGB), stored in the cell's CDF entry so that a sample or a Pmf
-  // lookup finds it in the cache line it has loaded anyway.
-  PiecewiseConstant2D(std::span<const double> weights, int64_t rows, int64_t cols,
-                      std::span<const float> payload = {});
+  // Preconditions (checked): rows, cols >= 1 and weights.size() == rows * cols.
+  PiecewiseConstant2D(std::span<const double> weights, int64_t rows, int64_t cols);
 
   int64_t Rows() const { return rows_; }
   int64_t Cols() const { return cols_; }
@@ -113,22 +82,15 @@ class PiecewiseConstant2D {
 
   PiecewiseConstant2DSample Sample(Vec2d u) const;
   double Pmf(int64_t row, int64_t col) const {
-    const detail::CdfPayloadEntry* e = Row(row);
-    return marginal_.Pmf(row) * (e[col + 1].cdf - e[col].cdf);
+    return marginal_.Pmf(row) * conditional_[row].Pmf(col);
   }
-  // The 3 payload floats of cell (row, col).
-  const float* Payload(int64_t row, int64_t col) const { return Row(row)[col].payload; }
   // The u that Sample maps to (row, col, uRemapped). Precondition: Pmf(row, col) > 0.
   Vec2d Invert(int64_t row, int64_t col, Vec2d uRemapped) const;
 
  private:
-  const detail::CdfPayloadEntry* Row(int64_t row) const {
-    return conditional_.data() + row * (cols_ + 1);
-  }
-
   int64_t rows_, cols_;
-  std::vector<detail::CdfPayloadEntry> conditional_;  // per row, cols + 1 entries
-  DiscreteDistribution marginal_;                     // over rows, from the rows' totals
+  std::vector<DiscreteDistribution> conditional_;  // one per row
+  DiscreteDistribution marginal_;                  // over rows, from the rows' totals
 };
 
 }  // namespace probebake
