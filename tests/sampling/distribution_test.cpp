@@ -255,6 +255,31 @@ TEST(PiecewiseConstant2D, PmfSamplingAndRemapping) {
   EXPECT_TRUE(r2.pass) << "remapped u: " << r2.ToString();
 }
 
+// Prefetch loads the row Sample will read (the same row, always) and guesses the column from the
+// guide bucket: exact where the row is uniform, and never past the guide range Sample searches.
+TEST(PiecewiseConstant2D, PrefetchPicksTheSampledRowAndGuessesItsColumn) {
+  constexpr int rows = 24, cols = 40;
+  std::vector<double> w = RandomWeights(rows * cols, 12, 0.1);
+  for (int c = 0; c < cols; ++c) w[2 * cols + c] = 3;  // a uniform row
+  const PiecewiseConstant2D d(w, rows, cols);
+  IndependentSampler s(28, 0);
+  int uniformRowSamples = 0;
+  for (int n = 0; n < 100000; ++n) {
+    s.StartSample(n);
+    const Vec2d u = s.Get2D();
+    int64_t row, col;
+    d.Prefetch(u, &row, &col);
+    const PiecewiseConstant2DSample x = d.Sample(u);
+    ASSERT_EQ(row, x.row);
+    ASSERT_TRUE(col >= 0 && col < cols);
+    if (x.row == 2) {
+      ++uniformRowSamples;
+      ASSERT_EQ(col, x.col) << u.x;
+    }
+  }
+  EXPECT_GT(uniformRowSamples, 100);
+}
+
 TEST(PiecewiseConstant2D, AllZeroIsUniform) {
   const std::vector<double> w(6 * 4, 0.0);
   const PiecewiseConstant2D d(w, 6, 4);

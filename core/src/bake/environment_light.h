@@ -32,6 +32,14 @@ class EnvironmentLight {
   // environment cosine-weighted about n when a surface normal is given, else uniform. Returns the
   // radiance from wi; pdf per steradian (0 when nothing can be sampled).
   Vec3d Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double* pdf) const;
+  // A hint, no effect on results: for a map whose tables do not fit in the cache, starts loading
+  // what Sample(u, ...) will read, so that work done between the two hides the memory latency.
+  void Prefetch(const Vec2d& u) const {
+    if (!prefetch_) return;
+    int64_t row, col;
+    distribution_->Prefetch(u, &row, &col);
+    __builtin_prefetch(Texel(int(col), int(row)));
+  }
   double Pdf(const Vec3d& wi, const Vec3d* n) const;
   // Radiance from wi and the pdf Sample would have had for it, with one pixel lookup.
   Vec3d RadianceAndPdf(const Vec3d& wi, const Vec3d* n, double* pdf) const;
@@ -64,6 +72,7 @@ class EnvironmentLight {
   const float* rgb_ = nullptr;
   double scale_ = 1;
   int width_ = 0;
+  bool prefetch_ = false;  // Prefetch does something
   Mat3d worldFromMap_, mapFromWorld_;
   std::vector<double> columnLon0_, columnLon1_, rowZ0_, rowZ1_;  // cell bounds (CellBounds)
   std::unique_ptr<PiecewiseConstant2D> distribution_;

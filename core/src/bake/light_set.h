@@ -101,6 +101,12 @@ class LightSet {
   bool Sample(const Vec3d& p, const Vec3d* n, std::span<const double> importance, double total,
               double uSelect, const Vec2d& u, LightSample* sample) const;
 
+  // A hint, no effect on results: starts loading the memory that Sample(..., u, ...) reads if it
+  // picks a large environment map. Call it with the u of a later Sample, with work in between.
+  void Prefetch(const Vec2d& u) const {
+    if (environment_) environment_->Prefetch(u);
+  }
+
   // A ray from p (normal n as above, importance as computed there) along wi hit `hit`: the
   // emitted radiance toward p and NEE's pdf of that direction. False if the surface hit emits
   // nothing (not a light, or its back side).

@@ -127,6 +127,15 @@ bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t
     const Vec2d uDirection = sampler.Get2D();
     const double uSelect = sampler.Get1D();
     const Vec2d uLight = sampler.Get2D();
+    // The path first, the light sample after it: the path's work hides the memory latency of the
+    // light sample's tables (a large environment map), loaded from here on. The projections are
+    // still added light sample first, so the sum's bits do not change.
+    if (lightSampling_ && totalProbe > 0) lights_.Prefetch(uLight);
+
+    const Vec3d wi = SampleUniformSphere(uDirection);
+    std::copy(importanceProbe.begin(), importanceProbe.end(), scratchA.begin());
+    const Vec3d radiance = TracePath<kMedium>(origin, p, wi, pdfProbe, scratchA, totalProbe,
+                                              scratchB, sampler, &local);
 
     if (lightSampling_ && totalProbe > 0) {
       LightSample ls;
@@ -138,11 +147,6 @@ bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t
         }
       }
     }
-
-    const Vec3d wi = SampleUniformSphere(uDirection);
-    std::copy(importanceProbe.begin(), importanceProbe.end(), scratchA.begin());
-    const Vec3d radiance = TracePath<kMedium>(origin, p, wi, pdfProbe, scratchA, totalProbe,
-                                              scratchB, sampler, &local);
     if (MaxComponent(radiance) > 0) Project(order, wi, radiance / pdfProbe, sum);
     ++local.samples;
   }
@@ -161,6 +165,18 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
   Vec3d nPrevStorage;
   const Vec3d* nPrev = nullptr;  // the probe and medium vertices have no surface
   for (int bounce = 1;; ++bounce) {
+    // Without a medium the vertex's random numbers are drawn before its ray is traced (a path
+    // that ends there leaves them unused, and the next sample restarts the sampler), so that the
+    // light sample's memory loads while Embree traces.
+    double uSelect = 0, uRoulette = 0;
+    Vec2d uLight, uContinue;
+    if constexpr (!kMedium) {
+      uSelect = sampler.Get1D();
+      uLight = sampler.Get2D();
+      uContinue = sampler.Get2D();
+      uRoulette = sampler.Get1D();
+      if (lightSampling_) lights_.Prefetch(uLight);
+    }
     SurfaceHit hit;
     ++counters->rays;
     const bool found = tracer_.Intersect(origin, wi, kInf, &hit);
@@ -173,10 +189,10 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
       beta *= ms.weight;
       if (ms.scattered) {
         const Vec3d x = Vec3d(origin) + wi * ms.t;
-        const double uSelect = sampler.Get1D();
-        const Vec2d uLight = sampler.Get2D();
-        const Vec2d uContinue = sampler.Get2D();
-        const double uRoulette = sampler.Get1D();
+        uSelect = sampler.Get1D();
+        uLight = sampler.Get2D();
+        uContinue = sampler.Get2D();
+        uRoulette = sampler.Get1D();
         if (bounce > settings_.maxDepth || MaxComponent(beta) <= 0) break;
         const Vec3f xf(x);
         const double g = medium_->g();
@@ -234,10 +250,12 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
     if (bounce > settings_.maxDepth) break;
     const Vec3d& albedo = scene_.materials[scene_.meshes[hit.index].material].albedo;
 
-    const double uSelect = sampler.Get1D();
-    const Vec2d uLight = sampler.Get2D();
-    const Vec2d uContinue = sampler.Get2D();
-    const double uRoulette = sampler.Get1D();
+    if constexpr (kMedium) {
+      uSelect = sampler.Get1D();
+      uLight = sampler.Get2D();
+      uContinue = sampler.Get2D();
+      uRoulette = sampler.Get1D();
+    }
     if (MaxComponent(albedo) <= 0) break;
 
     // Shade on the side the ray arrived from; both sides of a mesh reflect.

@@ -65,11 +65,6 @@ DiscreteDistribution::DiscreteDistribution(std::span<const double> weights) {
   guide_[n] = static_cast<uint32_t>(n - 1);
 }
 
-int64_t DiscreteDistribution::Bucket(double u) const {
-  const int64_t n = Size();
-  return std::min(static_cast<int64_t>(u * static_cast<double>(n)), n - 1);
-}
-
 DiscreteSample DiscreteDistribution::Sample(double u) const {
   PB_DCHECK(u >= 0 && u < 1);
   const int64_t b = Bucket(u);

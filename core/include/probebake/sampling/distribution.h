@@ -27,6 +27,7 @@
 // Both classes are immutable after construction; const methods may be called from any thread.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <span>
 #include <vector>
@@ -50,6 +51,14 @@ class DiscreteDistribution {
   double Total() const { return total_; }
 
   DiscreteSample Sample(double u) const;
+  // A hint, for tables too large for the cache: starts loading the guide entry and the CDF values
+  // Sample(u) will read if the CDF is near linear there, and returns that guess of its index.
+  int64_t Prefetch(double u) const {
+    const int64_t b = Bucket(u);
+    __builtin_prefetch(guide_.data() + b);
+    __builtin_prefetch(cdf_.data() + b);
+    return b;
+  }
   // Precondition: 0 <= index < Size().
   double Pmf(int64_t index) const { return cdf_[index + 1] - cdf_[index]; }
   // The u in [0, 1) that Sample maps to (index, uRemapped); uRemapped in [0, 1).
@@ -61,7 +70,10 @@ class DiscreteDistribution {
   std::vector<uint32_t> guide_;  // guide_[b]: first i with Bucket(cdf_[i + 1]) >= b; n + 1 entries
   double total_ = 0;
 
-  int64_t Bucket(double u) const;
+  int64_t Bucket(double u) const {
+    const int64_t n = Size();
+    return std::min(static_cast<int64_t>(u * static_cast<double>(n)), n - 1);
+  }
 };
 
 struct PiecewiseConstant2DSample {
@@ -81,6 +93,12 @@ class PiecewiseConstant2D {
   double Total() const { return marginal_.Total(); }
 
   PiecewiseConstant2DSample Sample(Vec2d u) const;
+  // A hint (DiscreteDistribution::Prefetch): picks the row Sample(u) picks and starts loading
+  // what it will read in that row; returns the row and a guess of the column.
+  void Prefetch(Vec2d u, int64_t* row, int64_t* colGuess) const {
+    *row = marginal_.Sample(u.y).index;
+    *colGuess = conditional_[*row].Prefetch(u.x);
+  }
   double Pmf(int64_t row, int64_t col) const {
     return marginal_.Pmf(row) * conditional_[row].Pmf(col);
   }
