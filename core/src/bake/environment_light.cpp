@@ -25,8 +25,9 @@ double LongitudeOf(double x, int w) {
   return w > 1 ? 2 * kPi * (0.5 - x / (w - 1)) : 0.0;
 }
 
-// From this many texels on, Prefetch loads ahead (below, the tables stay in cache and prefetching
-// only costs instructions).
+// Above this many texels Prefetch loads ahead: the sampling data per texel (CDF, guide, RGB: 24
+// bytes) no longer fits in a core's L2 cache (~1.5 MiB at 256 x 256); below it, prefetching would
+// only cost instructions.
 constexpr size_t kPrefetchTexels = size_t{1} << 16;
 
 }  // namespace
@@ -87,8 +88,6 @@ EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
   black_ = !(sum > 0);
   importance_ = sum / (4 * kPi) * kPi;
   if (!black_) distribution_ = std::make_unique<PiecewiseConstant2D>(weights, h, w);
-  // The tables per texel (CDF, guide, RGB: 24 bytes) stop fitting in a core's L2 cache at about
-  // 64k texels (256 x 256).
   prefetch_ = !black_ && size_t(w) * h > kPrefetchTexels;
 }
 

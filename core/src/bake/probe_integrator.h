@@ -24,7 +24,8 @@
 // across samples (what quasi-Monte Carlo stratification needs): probe direction (2D), light
 // choice (1D), light point (2D); then per path segment, with a medium only: channel (1D) and
 // distance (1D); then per scattering vertex: light choice (1D), light point (2D), continuation
-// (2D), roulette (1D).
+// (2D), roulette (1D). Without a medium a vertex's numbers are drawn before the ray that finds it
+// is traced (LightSet::Prefetch), and left unused when there is no vertex: the order is the same.
 #pragma once
 
 #include <atomic>
