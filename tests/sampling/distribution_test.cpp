@@ -255,8 +255,8 @@ TEST(PiecewiseConstant2D, PmfSamplingAndRemapping) {
   EXPECT_TRUE(r2.pass) << "remapped u: " << r2.ToString();
 }
 
-// Prefetch loads the row Sample will read (the same row, always) and guesses the column from the
-// guide bucket: exact where the row is uniform, and never past the guide range Sample searches.
+// Prefetch loads the row Sample will read (the same row, always) and guesses a column of it from
+// the guide bucket, exact where the row is uniform.
 TEST(PiecewiseConstant2D, PrefetchPicksTheSampledRowAndGuessesItsColumn) {
   constexpr int rows = 24, cols = 40;
   std::vector<double> w = RandomWeights(rows * cols, 12, 0.1);
