@@ -2,11 +2,16 @@
 // probe grid, order 2, default estimator) at one and two threads. Reports rays/s (every ray,
 // shadow and validity rays included), samples/s and probes/s per wall second. The job (scene
 // load, assets) is built once outside the timed loop; each iteration is one whole Bake().
+// BM_DemoBakeSkyScale bakes the same job with each texel of its sky repeated k x k times: the
+// same light, in tables k^2 times as large, so the difference is what a large map costs (building
+// its tables once per bake, and reading them from memory per sample).
 //
 //   probebake_bake_bench [--benchmark_filter=...] [--benchmark_repetitions=N]
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
 #include <cstdio>
+#include <memory>
 #include <string>
 
 #include "probebake/bake/bake.h"
@@ -72,6 +77,48 @@ void RunBake(benchmark::State& state, v1::BakeSettings::Estimator estimator) {
   state.counters["probes/s"] = benchmark::Counter(double(probes), benchmark::Counter::kIsRate);
 }
 
+// The map with every texel repeated k x k times (nearest-neighbour upsampling: the same sky).
+std::shared_ptr<const EnvironmentMap> Upsampled(const EnvironmentMap& map, int k) {
+  auto big = std::make_shared<EnvironmentMap>(map);
+  big->width = map.width * k;
+  big->height = map.height * k;
+  big->rgb.assign(size_t(big->width) * big->height * 3, 0.0f);
+  for (int y = 0; y < big->height; ++y) {
+    for (int x = 0; x < big->width; ++x) {
+      const float* src = &map.rgb[3 * (size_t(y / k) * map.width + x / k)];
+      std::copy(src, src + 3, &big->rgb[3 * (size_t(y) * big->width + x)]);
+    }
+  }
+  big->digest += "-upsampled";
+  return big;
+}
+
+void BM_DemoBakeSkyScale(benchmark::State& state) {
+  Logger("bake")->set_level(spdlog::level::warn);
+  Logger("job")->set_level(spdlog::level::warn);
+  BakeJob job = DemoJob(state.range(1), v1::BakeSettings::NEE_MIS);
+  if (!job.scene.environment.map) {
+    state.SkipWithError("the demo scene has no environment map");
+    return;
+  }
+  const int k = int(state.range(0));
+  if (k > 1) job.scene.environment.map = Upsampled(*job.scene.environment.map, k);
+  state.SetLabel(std::to_string(job.scene.environment.map->width) + " x " +
+                 std::to_string(job.scene.environment.map->height) + " sky");
+  BakeOptions options;
+  options.threads = 1;
+  int64_t rays = 0;
+  for (auto _ : state) {
+    absl::StatusOr<ProbeVolume> volume = Bake(job, options);
+    if (!volume.ok()) {
+      state.SkipWithError(std::string(volume.status().message()).c_str());
+      return;
+    }
+    rays += volume->stats.rays;
+  }
+  state.counters["rays/s"] = benchmark::Counter(double(rays), benchmark::Counter::kIsRate);
+}
+
 void BM_DemoBakeNeeMis(benchmark::State& state) {
   RunBake(state, v1::BakeSettings::NEE_MIS);
 }
@@ -88,6 +135,14 @@ BENCHMARK(BM_DemoBakeNeeMis)
 BENCHMARK(BM_DemoBakeDirectionSampling)
     ->Args({1024, 1})
     ->ArgNames({"samples", "threads"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+// Args: k, the sky's upsampling (1: the bundled 128 x 64; 16: 2048 x 1024), and samples per probe;
+// 1 thread. Building the sky's tables is part of each bake: the difference between the two sample
+// counts is the sampling's cost alone.
+BENCHMARK(BM_DemoBakeSkyScale)
+    ->ArgsProduct({{1, 4, 16}, {256, 4096}})
+    ->ArgNames({"k", "samples"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 
