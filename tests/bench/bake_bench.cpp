@@ -55,12 +55,10 @@ BakeJob DemoJob(int64_t samples, v1::BakeSettings::Estimator estimator) {
   return *std::move(job);
 }
 
-void RunBake(benchmark::State& state, v1::BakeSettings::Estimator estimator) {
-  Logger("bake")->set_level(spdlog::level::warn);
-  Logger("job")->set_level(spdlog::level::warn);
-  const BakeJob job = DemoJob(state.range(0), estimator);
+// Times whole bakes of `job` and reports rays, samples and probes per second.
+void TimeBakes(benchmark::State& state, const BakeJob& job, int threads) {
   BakeOptions options;
-  options.threads = int(state.range(1));
+  options.threads = threads;
   int64_t rays = 0, samples = 0, probes = 0;
   for (auto _ : state) {
     absl::StatusOr<ProbeVolume> volume = Bake(job, options);
@@ -75,6 +73,16 @@ void RunBake(benchmark::State& state, v1::BakeSettings::Estimator estimator) {
   state.counters["rays/s"] = benchmark::Counter(double(rays), benchmark::Counter::kIsRate);
   state.counters["samples/s"] = benchmark::Counter(double(samples), benchmark::Counter::kIsRate);
   state.counters["probes/s"] = benchmark::Counter(double(probes), benchmark::Counter::kIsRate);
+}
+
+void QuietLogs() {
+  Logger("bake")->set_level(spdlog::level::warn);
+  Logger("job")->set_level(spdlog::level::warn);
+}
+
+void RunBake(benchmark::State& state, v1::BakeSettings::Estimator estimator) {
+  QuietLogs();
+  TimeBakes(state, DemoJob(state.range(0), estimator), int(state.range(1)));
 }
 
 // The map with every texel repeated k x k times (nearest-neighbour upsampling: the same sky).
@@ -94,8 +102,7 @@ std::shared_ptr<const EnvironmentMap> Upsampled(const EnvironmentMap& map, int k
 }
 
 void BM_DemoBakeSkyScale(benchmark::State& state) {
-  Logger("bake")->set_level(spdlog::level::warn);
-  Logger("job")->set_level(spdlog::level::warn);
+  QuietLogs();
   BakeJob job = DemoJob(state.range(1), v1::BakeSettings::NEE_MIS);
   if (!job.scene.environment.map) {
     state.SkipWithError("the demo scene has no environment map");
@@ -105,18 +112,7 @@ void BM_DemoBakeSkyScale(benchmark::State& state) {
   if (k > 1) job.scene.environment.map = Upsampled(*job.scene.environment.map, k);
   state.SetLabel(std::to_string(job.scene.environment.map->width) + " x " +
                  std::to_string(job.scene.environment.map->height) + " sky");
-  BakeOptions options;
-  options.threads = 1;
-  int64_t rays = 0;
-  for (auto _ : state) {
-    absl::StatusOr<ProbeVolume> volume = Bake(job, options);
-    if (!volume.ok()) {
-      state.SkipWithError(std::string(volume.status().message()).c_str());
-      return;
-    }
-    rays += volume->stats.rays;
-  }
-  state.counters["rays/s"] = benchmark::Counter(double(rays), benchmark::Counter::kIsRate);
+  TimeBakes(state, job, 1);
 }
 
 void BM_DemoBakeNeeMis(benchmark::State& state) {
