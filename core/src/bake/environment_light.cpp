@@ -79,8 +79,8 @@ EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
     for (int ix = 0; ix < w; ++ix) {
       const double solidAngle = CellSolidAngle(ix, iy);
       const size_t k = size_t(iy) * w + ix;
-      const float* rgb = &map_->rgb[3 * k];
-      const double lum = map_->scale * Luminance(Vec3d(rgb[0], rgb[1], rgb[2]));
+      const float* rgb = Texel(ix, iy);
+      const double lum = scale_ * Luminance(Vec3d(rgb[0], rgb[1], rgb[2]));
       weights[k] = std::max(0.0, lum) * solidAngle;
       sum += weights[k];
     }

@@ -34,6 +34,24 @@ double BalanceHeuristic(double pdfA, double pdfB) {
   return pdfA / (pdfA + pdfB);
 }
 
+// The random numbers of one scattering vertex, in the order they are drawn.
+struct VertexNumbers {
+  double select = 0;  // light choice
+  Vec2d light;        // light point
+  Vec2d next;         // continuation direction
+  double roulette = 0;
+};
+
+template <typename S>
+VertexNumbers DrawVertexNumbers(S& sampler) {
+  VertexNumbers v;
+  v.select = sampler.Get1D();
+  v.light = sampler.Get2D();
+  v.next = sampler.Get2D();
+  v.roulette = sampler.Get1D();
+  return v;
+}
+
 }  // namespace
 
 ProbeIntegrator::ProbeIntegrator(const Scene& scene, const TracerScene& tracer,
@@ -168,14 +186,10 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
     // Without a medium the vertex's random numbers are drawn before its ray is traced (a path
     // that ends there leaves them unused, and the next sample restarts the sampler), so that the
     // light sample's memory loads while Embree traces.
-    double uSelect = 0, uRoulette = 0;
-    Vec2d uLight, uContinue;
+    VertexNumbers u;
     if constexpr (!kMedium) {
-      uSelect = sampler.Get1D();
-      uLight = sampler.Get2D();
-      uContinue = sampler.Get2D();
-      uRoulette = sampler.Get1D();
-      if (lightSampling_) lights_.Prefetch(uLight);
+      u = DrawVertexNumbers(sampler);
+      if (lightSampling_) lights_.Prefetch(u.light);
     }
     SurfaceHit hit;
     ++counters->rays;
@@ -189,17 +203,14 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
       beta *= ms.weight;
       if (ms.scattered) {
         const Vec3d x = Vec3d(origin) + wi * ms.t;
-        uSelect = sampler.Get1D();
-        uLight = sampler.Get2D();
-        uContinue = sampler.Get2D();
-        uRoulette = sampler.Get1D();
+        u = DrawVertexNumbers(sampler);
         if (bounce > settings_.maxDepth || MaxComponent(beta) <= 0) break;
         const Vec3f xf(x);
         const double g = medium_->g();
         const double total = lights_.Importance(x, nullptr, /*includeDelta=*/true, scratch);
         if (lightSampling_ && total > 0) {
           LightSample ls;
-          if (lights_.Sample(x, nullptr, scratch, total, uSelect, uLight, &ls)) {
+          if (lights_.Sample(x, nullptr, scratch, total, u.select, u.light, &ls)) {
             // Light propagating along -ls.wi leaves along -wi: cos theta = Dot(ls.wi, wi).
             const double phase = HenyeyGreensteinPdf(Dot(ls.wi, wi), g);
             const Vec3d tr = Shadow<true>(xf, ls, counters);
@@ -211,12 +222,12 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
         }
         // Sample where the light came from: its propagation direction dIn is HG-distributed about
         // the outgoing one, -wi (the phase function is symmetric in the two).
-        const Vec3d local = SampleHenyeyGreenstein(uContinue, g);
+        const Vec3d local = SampleHenyeyGreenstein(u.next, g);
         const Vec3d dIn = Framed::FromZ(-wi).FromLocal(local);
         pdfDir = HenyeyGreensteinPdf(local.z, g);  // phase / pdf = 1: beta is unchanged
         if (settings_.russianRoulette && bounce >= settings_.rrMinDepth) {
           const double survive = std::min(1.0, MaxComponent(beta));
-          if (uRoulette >= survive) break;
+          if (u.roulette >= survive) break;
           beta = beta / survive;
         }
         wi = Normalize(-dIn);
@@ -250,12 +261,7 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
     if (bounce > settings_.maxDepth) break;
     const Vec3d& albedo = scene_.materials[scene_.meshes[hit.index].material].albedo;
 
-    if constexpr (kMedium) {
-      uSelect = sampler.Get1D();
-      uLight = sampler.Get2D();
-      uContinue = sampler.Get2D();
-      uRoulette = sampler.Get1D();
-    }
+    if constexpr (kMedium) u = DrawVertexNumbers(sampler);
     if (MaxComponent(albedo) <= 0) break;
 
     // Shade on the side the ray arrived from; both sides of a mesh reflect.
@@ -269,7 +275,7 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
 
     if (lightSampling_ && total > 0) {
       LightSample ls;
-      if (lights_.Sample(hit.p, &n, scratch, total, uSelect, uLight, &ls)) {
+      if (lights_.Sample(hit.p, &n, scratch, total, u.select, u.light, &ls)) {
         const double cosTheta = Dot(ls.wi, n);
         if (cosTheta > 0) {
           const Vec3d tr = Shadow<kMedium>(spawn, ls, counters);
@@ -282,7 +288,7 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
       }
     }
 
-    const Vec3d local = SampleCosineHemisphere(uContinue);
+    const Vec3d local = SampleCosineHemisphere(u.next);
     pdfDir = CosineHemispherePdf(local.z);
     if (!(pdfDir > 0)) break;
     wi = Normalize(Framed::FromZ(n).FromLocal(local));
@@ -290,7 +296,7 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
     beta *= albedo;
     if (settings_.russianRoulette && bounce >= settings_.rrMinDepth) {
       const double survive = std::min(1.0, MaxComponent(beta));
-      if (uRoulette >= survive) break;
+      if (u.roulette >= survive) break;
       beta = beta / survive;
     }
     origin = spawn;
