@@ -293,6 +293,8 @@ TEST(Adaptive, StopsWhenTheTargetIsMetAndNotBefore) {
       const int k = int(v.sampleCount[p] / 1024);
       EXPECT_LE(AdaptiveErrorBound(v.stdError[p], k), 0.02 * (1 + 1e-6))
           << "probe " << p << " stopped before meeting the target";
+      // The first round (8 batches) can never end sampling alone: a second must confirm it.
+      EXPECT_GE(k, 10) << "probe " << p << " stopped without a confirming round";
       EXPECT_GT(AdaptiveErrorBound(v.stdError[p], k), v.stdError[p] * 1.1) << "no margin";
     }
   }

@@ -301,9 +301,11 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
           counters.Add(exactCounters);
 
           // Batches run in rounds: all of them at once, or (adaptive) a first round of
-          // kMinAdaptiveBatches and then pairs until the error target is met. The rounds are fixed
-          // by the settings alone, so the result never depends on the thread count.
+          // kMinAdaptiveBatches and then pairs until the error target is met at two successive
+          // rounds (bake.h). The rounds are fixed by the settings alone, so the result never
+          // depends on the thread count.
           int next = 0;
+          bool metBefore = false;  // the previous round's bound was under the target
           while (next < maxBatches) {
             const int roundEnd =
                 !adaptive ? maxBatches
@@ -318,9 +320,12 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
             });
             if (isCancelled()) return;
             next = roundEnd;
-            if (adaptive &&
-                AdaptiveErrorBound(estimate.RelativeError(next), next) <= settings.targetRelError)
-              break;
+            if (adaptive) {
+              const bool met =
+                  AdaptiveErrorBound(estimate.RelativeError(next), next) <= settings.targetRelError;
+              if (met && metBefore) break;
+              metBefore = met;
+            }
           }
           finisher.Finish(estimate, next, probe, &volume);
           done[probe].store(1, std::memory_order_release);

@@ -50,11 +50,15 @@ struct BakeOptions {
 
 // Adaptive sampling (settings.targetRelError > 0): a probe bakes batches in rounds (the first 8,
 // then 2 at a time) and stops once AdaptiveErrorBound(relative standard error, batches so far)
-// is at or below the target, or at the sample cap. The bound is an upper confidence bound on the
-// error rather than the estimate itself: stopping at the first estimate that happens to come out
-// low (optional stopping) leaves the achieved error above the target. With k batches the
-// estimated standard error has a relative spread of about 1/sqrt(2(k-1)) (Gaussian batch means);
-// the bound adds kAdaptiveSigmas of it: relError * (1 + 2 / sqrt(2(k-1))).
+// is at or below the target at two successive rounds, or at the sample cap. The bound is an upper
+// confidence bound on the error rather than the estimate itself: stopping at the first estimate
+// that happens to come out low (optional stopping) leaves the achieved error above the target.
+// With k batches the estimated standard error has a relative spread of about 1/sqrt(2(k-1))
+// (Gaussian batch means); the bound adds kAdaptiveSigmas of it: relError * (1 + 2 / sqrt(2(k-1))).
+// Batch means are not Gaussian where a small bright light is found by rare paths: batches that
+// have not met them yet report a low value and a low error together, a fluctuation the bound
+// cannot see. The second round must confirm the first: on the bench's courtyard a probe that
+// stopped at 16 batches with a 0.5% target, 0.35% reported and 2.5% true, read 0.71% at 18.
 inline constexpr double kAdaptiveSigmas = 2;
 double AdaptiveErrorBound(double relError, int batches);
 
