@@ -14,14 +14,15 @@ QualityPreset PresetFor(v1::BakeSettings::Quality quality) {
   // Calibrated with the accuracy benchmark (scripts/bench.sh, tests/bench/results/results.md) on
   // its hardest scene, the demo room (NEE+MIS, Sobol; mean relative irradiance error against a
   // depth-64 reference; CPU time per probe on one core of the 2-core bench machine; run of
-  // 2026-12-02 02:46, baker version 6):
-  //  - PREVIEW: 12% error, 0.69 ms/probe. Depth 6 loses 2% of the light there, far under the
-  //    noise; the 5% target lets easy probes stop at 64 samples.
-  //  - PRODUCTION: 3.8% error, 5.0 ms/probe (2.3% on the courtyard scene, 1.1% on the closed-form
-  //    one, where probes meet the 2% target at ~530 samples). Depth 8 loses 0.7%.
-  //  - REFERENCE: 1.8% error (0.5% of it the reference's own), 25 ms/probe; depth 32 leaves no
+  // 2026-12-02 06:56, baker version 7):
+  //  - PREVIEW: 12% error, 0.73 ms/probe. Depth 6 loses 2% of the light there, far under the
+  //    noise; the 5% target lets easy probes stop at 80 samples.
+  //  - PRODUCTION: 3.7% error, 5.3 ms/probe (2.2% on the courtyard scene, 1.0% on the closed-form
+  //    one, where probes meet the 2% target at ~660 samples). Depth 8 loses 0.7%.
+  //  - REFERENCE: 1.8% error (0.5% of it the reference's own), 24 ms/probe; depth 32 leaves no
   //    measurable depth bias.
-  // Adaptive probes sample at least 8 of their 64 batches (1/8 of the cap) before they may stop.
+  // Adaptive probes sample at least 10 of their 64 batches (a first round of 8 and a confirming
+  // one of 2) before they may stop.
   switch (quality) {
     case v1::BakeSettings::PREVIEW:
       return {512, 6, 0.05};
