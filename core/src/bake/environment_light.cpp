@@ -96,7 +96,7 @@ EnvironmentLight::Cell EnvironmentLight::CellBounds(int ix, int iy) const {
 }
 
 EnvironmentLight::CellIndex EnvironmentLight::CellOf(const Vec3d& d) const {
-  const int w = map_->width, h = map_->height;
+  const int w = width_, h = map_->height;
   int ix = 0, iy = 0;
   if (w > 1) {
     const double lon = std::atan2(d.x, d.z);
@@ -115,8 +115,7 @@ Vec3d EnvironmentLight::Radiance(const Vec3d& wi) const {
   if (black_) return {};
   if (kind_ == Environment::Kind::kUniform) return uniform_;
   const CellIndex cell = CellOf(mapFromWorld_ * wi);
-  const float* rgb = Texel(cell.ix, cell.iy);
-  return Vec3d(rgb[0], rgb[1], rgb[2]) * scale_;
+  return TexelRadiance(cell.ix, cell.iy);
 }
 
 Vec3d EnvironmentLight::Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double* pdf) const {
@@ -146,8 +145,7 @@ Vec3d EnvironmentLight::Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double
   const Vec3d mapDir{r * sc.sin, z, r * sc.cos};
   *wi = worldFromMap_ * mapDir;
   *pdf = pmf / CellSolidAngle(ix, iy);
-  const float* rgb = Texel(ix, iy);
-  return Vec3d(rgb[0], rgb[1], rgb[2]) * scale_;
+  return TexelRadiance(ix, iy);
 }
 
 double EnvironmentLight::Pdf(const Vec3d& wi, const Vec3d* n) const {
@@ -168,9 +166,8 @@ Vec3d EnvironmentLight::RadianceAndPdf(const Vec3d& wi, const Vec3d* n, double* 
     return uniform_;
   }
   const CellIndex cell = CellOf(mapFromWorld_ * wi);
-  const float* rgb = Texel(cell.ix, cell.iy);
   *pdf = distribution_->Pmf(cell.iy, cell.ix) / CellSolidAngle(cell.ix, cell.iy);
-  return Vec3d(rgb[0], rgb[1], rgb[2]) * scale_;
+  return TexelRadiance(cell.ix, cell.iy);
 }
 
 }  // namespace probebake

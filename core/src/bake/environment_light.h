@@ -57,6 +57,11 @@ class EnvironmentLight {
   };
   CellIndex CellOf(const Vec3d& mapDir) const;
   const float* Texel(int ix, int iy) const { return rgb_ + 3 * (size_t(iy) * width_ + ix); }
+  // Radiance of cell (ix, iy): its texel times the map's scale.
+  Vec3d TexelRadiance(int ix, int iy) const {
+    const float* rgb = Texel(ix, iy);
+    return Vec3d(rgb[0], rgb[1], rgb[2]) * scale_;
+  }
   Cell CellBounds(int ix, int iy) const;
   // Solid angle of cell (ix, iy): its longitude range times its sin(latitude) range. Computed,
   // not tabled: a table per texel would be one more cache miss per sample of a large map.
