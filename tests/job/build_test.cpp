@@ -328,6 +328,52 @@ TEST(Digests, StableAndIndependentOfJsonLayout) {
   EXPECT_EQ(c->jobDigest, a->jobDigest);
 }
 
+TEST(Digests, DefaultsSpelledOutAreTheSameJob) {
+  const absl::StatusOr<BakeJob> base = BuildFromData(Example());
+  ASSERT_TRUE(base.ok()) << base.status();
+  // The example spells out an identity transform, a black albedo and the default placement.
+  const std::string folded =
+      Patched(Patched(Patched(Patched(Example(), "scene.meshes[0].transform", ""),
+                              "scene.materials[1].albedo", ""),
+                      "grid.placement", ""),
+              "scene.meshes[1].name", "\"renamed panel\"");
+  const std::string zeroEmission = Patched(folded, "scene.materials[0].emission", "[0, 0, 0]");
+  const std::string ignoredDistance = Patched(folded, "grid.surfaceDistance", "0.25");
+  for (const std::string& same : {folded, zeroEmission, ignoredDistance}) {
+    const absl::StatusOr<BakeJob> built = BuildFromData(same);
+    ASSERT_TRUE(built.ok()) << built.status();
+    EXPECT_EQ(built->sceneDigest, base->sceneDigest) << same;
+    EXPECT_EQ(built->jobDigest, base->jobDigest) << same;
+  }
+  // A medium that neither absorbs nor scatters is vacuum.
+  const absl::StatusOr<BakeJob> vacuum = BuildFromData(Patched(
+      Patched(Example(), "scene.medium.sigmaA", "[0, 0, 0]"), "scene.medium.sigmaS", "[0, 0, 0]"));
+  const absl::StatusOr<BakeJob> noMedium = BuildFromData(Patched(Example(), "scene.medium", ""));
+  ASSERT_TRUE(vacuum.ok() && noMedium.ok());
+  EXPECT_FALSE(vacuum->scene.medium.has_value());
+  EXPECT_EQ(vacuum->sceneDigest, noMedium->sceneDigest);
+  EXPECT_NE(noMedium->sceneDigest, base->sceneDigest);
+  // One spacing for every axis, written once or three times.
+  const std::string spaced = Patched(Patched(Example(), "grid.counts", ""), "grid.spacing", "1");
+  const absl::StatusOr<BakeJob> once = BuildFromData(spaced);
+  const absl::StatusOr<BakeJob> thrice =
+      BuildFromData(Patched(spaced, "grid.spacing", "[1, 1, 1]"));
+  const absl::StatusOr<BakeJob> uneven =
+      BuildFromData(Patched(spaced, "grid.spacing", "[1, 1, 0.5]"));
+  ASSERT_TRUE(once.ok() && thrice.ok() && uneven.ok());
+  EXPECT_EQ(thrice->jobDigest, once->jobDigest);
+  EXPECT_NE(uneven->jobDigest, once->jobDigest);
+  // What does change the bake still changes the digests.
+  const absl::StatusOr<BakeJob> moved = BuildFromData(
+      Patched(Example(), "scene.meshes[0].transform", "[1,0,0,0, 0,1,0,0, 0,0,1,0.5, 0,0,0,1]"));
+  const absl::StatusOr<BakeJob> all =
+      BuildFromData(Patched(Example(), "grid.placement", "\"ALL\""));
+  ASSERT_TRUE(moved.ok() && all.ok());
+  EXPECT_NE(moved->sceneDigest, base->sceneDigest);
+  EXPECT_EQ(all->sceneDigest, base->sceneDigest);
+  EXPECT_NE(all->jobDigest, base->jobDigest);
+}
+
 TEST(Digests, WhatChangesWhat) {
   const absl::StatusOr<BakeJob> base = BuildFromData(Example());
   ASSERT_TRUE(base.ok());

@@ -169,6 +169,37 @@ TEST(EnvironmentMap, ThirtyTwoBitValuesSurvive) {
   EXPECT_EQ(map.digest, Sha256Hex(ReadText(dir.File("sun.exr"))));
 }
 
+TEST(EnvironmentMap, DefaultsSpelledOutGiveTheSameDigests) {
+  TempDir dir;
+  WriteExr(dir, "sky.exr", Image());
+  const absl::StatusOr<BakeJob> base = BuildEnvJob(dir, R"({"file": "sky.exr"})");
+  ASSERT_TRUE(base.ok()) << base.status();
+  for (const char* same :
+       {R"({"file": "sky.exr", "scale": 1})", R"({"file": "sky.exr", "up": "Y"})",
+        R"({"file": "sky.exr", "up": "Y", "scale": 1, "rotationDeg": 0})"}) {
+    const absl::StatusOr<BakeJob> built = BuildEnvJob(dir, same);
+    ASSERT_TRUE(built.ok()) << built.status();
+    EXPECT_EQ(built->sceneDigest, base->sceneDigest) << same;
+    EXPECT_EQ(built->jobDigest, base->jobDigest) << same;
+  }
+  for (const char* other :
+       {R"({"file": "sky.exr", "scale": 2})", R"({"file": "sky.exr", "up": "Z"})",
+        R"({"file": "sky.exr", "rotationDeg": 90})"}) {
+    const absl::StatusOr<BakeJob> built = BuildEnvJob(dir, other);
+    ASSERT_TRUE(built.ok()) << built.status();
+    EXPECT_NE(built->sceneDigest, base->sceneDigest) << other;
+  }
+  // A map scaled to black bakes as no environment at all.
+  const absl::StatusOr<BakeJob> black = BuildEnvJob(dir, R"({"file": "sky.exr", "scale": 0})");
+  ASSERT_TRUE(black.ok()) << black.status();
+  EXPECT_EQ(black->scene.environment.kind, Environment::Kind::kNone);
+  const std::string none = R"({"grid": {"min": [0, 0, 0], "max": [1, 1, 1], "counts": [2, 2, 2]}})";
+  const absl::StatusOr<BakeJob> noEnvironment =
+      BuildBakeJob(*ParseJobJson(none), LocalAssetSource(dir.path()), {});
+  ASSERT_TRUE(noEnvironment.ok()) << noEnvironment.status();
+  EXPECT_EQ(black->sceneDigest, noEnvironment->sceneDigest);
+}
+
 TEST(EnvironmentMap, LuminanceOnlyIsGrey) {
   TempDir dir;
   Image image;

@@ -256,6 +256,53 @@ void AddLight(const Light& light, Box* box) {
   }
 }
 
+bool AllZero(const google::protobuf::RepeatedField<double>& f) {
+  return std::all_of(f.begin(), f.end(), [](double x) { return x == 0; });
+}
+
+bool IsIdentity(const google::protobuf::RepeatedField<double>& m) {
+  for (int k = 0; k < m.size(); ++k)
+    if (m[k] != (k % 5 == 0 ? 1.0 : 0.0)) return false;
+  return true;
+}
+
+// Writes every field that holds its default the way an absent field does, so that jobs that bake
+// the same way get the same digests whether or not they spell the defaults out: zero albedo and
+// emission, an identity transform, a mesh's name (logs only), a map's scale 1 and up Y, a black
+// environment, a medium with zero coefficients; the grid's default placement, a surface distance
+// that only NEAR_SURFACES reads, and one spacing written as three equal numbers. `environmentKept`
+// and `mediumKept` say whether the built scene has an environment and a medium.
+void FoldDefaults(bool environmentKept, bool mediumKept, v1::Scene* scene, v1::Grid* grid) {
+  for (v1::Material& m : *scene->mutable_materials()) {
+    if (AllZero(m.albedo())) m.clear_albedo();
+    if (AllZero(m.emission())) m.clear_emission();
+  }
+  for (v1::Mesh& m : *scene->mutable_meshes()) {
+    m.clear_name();
+    if (IsIdentity(m.transform())) m.clear_transform();
+  }
+  if (!environmentKept) {
+    scene->clear_environment();
+  } else if (scene->environment().has_map()) {
+    v1::EnvironmentMap* map = scene->mutable_environment()->mutable_map();
+    if (map->has_scale() && map->scale() == 1) map->clear_scale();
+    if (map->up() == v1::EnvironmentMap::Y) map->set_up(v1::EnvironmentMap::UP_UNSPECIFIED);
+  }
+  if (!mediumKept) scene->clear_medium();
+
+  if (grid->placement() == v1::Grid::OUTSIDE_GEOMETRY)
+    grid->set_placement(v1::Grid::PLACEMENT_UNSPECIFIED);
+  if (grid->placement() != v1::Grid::NEAR_SURFACES) grid->clear_surface_distance();
+  if (grid->spacing().has_list_value()) {
+    const auto& values = grid->spacing().list_value().values();
+    if (values.size() == 3 && values[0].number_value() == values[1].number_value() &&
+        values[0].number_value() == values[2].number_value()) {
+      const double spacing = values[0].number_value();
+      grid->mutable_spacing()->set_number_value(spacing);
+    }
+  }
+}
+
 }  // namespace
 
 absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource& assets,
@@ -306,10 +353,13 @@ absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource&
     }
   }
 
+  v1::Grid canonicalGrid = spec.grid();
+  FoldDefaults(out.environment.kind != Environment::Kind::kNone, out.medium.has_value(), &canonical,
+               &canonicalGrid);
   job.sceneDigest = Sha256Hex(DeterministicBytes(canonical));
   v1::JobSpec canonicalJob;
   *canonicalJob.mutable_scene() = std::move(canonical);
-  *canonicalJob.mutable_grid() = spec.grid();
+  *canonicalJob.mutable_grid() = std::move(canonicalGrid);
   *canonicalJob.mutable_settings() = SettingsToProto(job.settings);
   job.jobDigest = Sha256Hex(DeterministicBytes(canonicalJob) +
                             "\nprobebake-baker-version=" + std::to_string(kBakerVersion));

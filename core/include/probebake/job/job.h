@@ -38,9 +38,14 @@ namespace probebake {
 //
 // BakeJob::sceneDigest: sha256 hex of the deterministic binary serialization of v1::Scene with
 // every `file` reference replaced by the blob digest of its content (and a mesh's format made
-// explicit and lowercase), so a local bake from files and a server bake from uploaded blobs agree.
+// explicit and lowercase), so a local bake from files and a server bake from uploaded blobs agree,
+// and with defaults folded: a field spelled out with its default value, or one that cannot change
+// the bake (a mesh's name, a black environment, a medium with zero coefficients), is written as
+// if absent.
 // BakeJob::jobDigest: sha256 hex of the deterministic serialization of the JobSpec {that canonical
-// scene, the grid as given, SettingsToProto(resolved settings)} followed by
+// scene, the grid as given with its defaults folded likewise (placement OUTSIDE_GEOMETRY, a
+// surface distance other placements ignore, three equal spacings), SettingsToProto(resolved
+// settings)} followed by
 // "\nprobebake-baker-version=<kBakerVersion>": the same numbers baked by the same baker give the
 // same digest whichever preset or defaults produced them.
 // BakeJob::settingsJson: SettingsToJson(resolved settings).
