@@ -322,6 +322,22 @@ TEST_F(Inspect, VolumeWithoutBakedProbes) {
   EXPECT_NE(VolumeReportJson(*report).find("\"bboxMin\":null"), std::string::npos);
 }
 
+TEST_F(Inspect, TextShowsASeedPast2To63AsTheSeed) {
+  for (const uint64_t seed : {uint64_t{7}, ~uint64_t{0}, uint64_t{1} << 63}) {
+    VolumeMetadata meta = MakeTestMetadata();
+    meta.seed = seed;
+    const std::string path = dir_.File("seed.vdb");
+    PB_ASSERT_OK(WriteProbeVolume(path, MakeTestVolume(TestVolumeSpec()), meta));
+    const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path);
+    ASSERT_TRUE(report.ok()) << report.status();
+    const std::string text = FormatVolumeReport(*report);
+    const std::string line = "seed (int64): " + std::to_string(int64_t(seed)) +
+                             (int64_t(seed) < 0 ? " (seed " + std::to_string(seed) + ")" : "") +
+                             "\n";
+    EXPECT_NE(text.find(line), std::string::npos) << text;
+  }
+}
+
 TEST_F(Inspect, MissingFileIsNotFound) {
   const absl::StatusOr<VolumeReport> report = InspectProbeVolume(dir_.File("absent.vdb"));
   EXPECT_EQ(report.status().code(), absl::StatusCode::kNotFound) << report.status();

@@ -17,6 +17,7 @@
 #include <openvdb/io/File.h>
 #include <openvdb/openvdb.h>
 
+#include "absl/strings/numbers.h"
 #include "probebake/volume/vdb_io.h"
 #include "probebake/volume/volume_inspect.h"
 #include "proto_json.h"
@@ -575,7 +576,13 @@ std::string FormatVolumeReport(const VolumeReport& report) {
   if (report.invalidProbes >= 0) out += " (invalid: " + std::to_string(report.invalidProbes) + ")";
   out += "\nmetadata:\n";
   for (const MetadataEntry& m : report.metadata) {
-    out += "  " + m.name + " (" + m.type + "): " + m.value + "\n";
+    out += "  " + m.name + " (" + m.type + "): " + m.value;
+    // The seed is a uint64 stored in int64 bits (OpenVDB has no unsigned metadata).
+    int64_t bits = 0;
+    if (m.name == kKeySeed && m.type == "int64" && absl::SimpleAtoi(m.value, &bits) && bits < 0) {
+      out += " (seed " + std::to_string(static_cast<uint64_t>(bits)) + ")";
+    }
+    out += "\n";
   }
   out += "grids (" + std::to_string(report.grids.size()) + "):\n";
   for (const GridReport& g : report.grids) {
