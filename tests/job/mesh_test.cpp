@@ -243,6 +243,68 @@ TEST(MeshImport, BadFilesAreRejectedWithThePath) {
                             "cannot import \"external.gltf\""));
 }
 
+TEST(MeshImport, FilesAModelNamesAreNeverOpened) {
+  // A server must not open a path a request names (SPEC 8): a glTF's external buffer is refused
+  // even when the file exists (assimp used to read it from disk).
+  TempDir dir;
+  dir.Write("buffer.bin", GltfBuffer());
+  dir.Write("external.gltf", GltfJson(dir.File("buffer.bin"), GltfBuffer().size()));
+  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "external.gltf").status(), "scene.meshes[0].file",
+                            "could not open referenced file"));
+}
+
+TEST(MeshImport, OnlyTheNamedFormatIsTried) {
+  // Assimp tries every importer it has by signature when no importer of the named extension
+  // accepts the bytes: an ASCII STL sent as glTF was read as STL.
+  TempDir dir;
+  const std::string stl =
+      "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+      "endloop\nendfacet\nendsolid t\n";
+  dir.Write("m.gltf", stl);
+  dir.Write("m.glb", stl);
+  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "m.gltf").status(), "scene.meshes[0].file",
+                            "cannot import \"m.gltf\" as gltf: it is not a gltf file"));
+  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "m.glb").status(), "scene.meshes[0].file",
+                            "cannot import \"m.glb\" as glb: it is not a glb file"));
+}
+
+TEST(MeshImport, PlyHeadersAreCheckedBeforeAssimpReadsThem) {
+  // Assimp's PLY reader crashed on a NUL byte in the header and looped forever without an
+  // end_header line.
+  TempDir dir;
+  const std::string header = PlyHeader("binary_little_endian");
+  ASSERT_EQ(header.substr(header.size() - 11), "end_header\n");
+  const std::string withNul = header.substr(0, header.size() - 11) + std::string(1, '\0') +
+                              header.substr(header.size() - 11) + std::string(64, '\0');
+  const struct {
+    std::string bytes;
+    std::string message;
+  } cases[] = {
+      {withNul, "its header has a byte that is not text (0) on line"},
+      {"ply\nformat ascii 1.0\n", "its header has no end_header line"},
+      {"ply\nformat ascii 1.0\nelement vertex 4\npr", "its header has no end_header line"},
+      {"ply\n", "its header has no end_header line"},
+      {"ply\nformat ascii 2.0\nend_header\n", "line 2 names an unknown format"},
+      {"ply\nelement vertex 0\nend_header\n", "its header has no format line"},
+      {"solid t\n", "it does not start with a \"ply\" line"},
+  };
+  for (const auto& c : cases) {
+    dir.Write("m.ply", c.bytes);
+    EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "m.ply").status(), "scene.meshes[0].file",
+                              "cannot import \"m.ply\" as ply: " + c.message))
+        << c.message;
+  }
+  // CRLF line ends are fine.
+  std::string crlf = PlyHeader("ascii");
+  for (size_t at = crlf.find('\n'); at != std::string::npos; at = crlf.find('\n', at + 2))
+    crlf.replace(at, 1, "\r\n");
+  for (const auto& v : kPlyVertices)
+    crlf += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\r\n";
+  crlf += "4 0 1 2 3\r\n3 4 1 2\r\n";
+  dir.Write("crlf.ply", crlf);
+  ExpectPlyMesh(BuildMeshJob(dir, "crlf.ply", "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]"));
+}
+
 TEST(MeshImport, TriangleLimitCountsFilesAndInlineMeshes) {
   TempDir dir;
   dir.Write("scene.obj", kObj);  // 3 triangles

@@ -1,12 +1,16 @@
 #include "mesh_import.h"
 
+#include <assimp/BaseImporter.h>
+#include <assimp/MemoryIOWrapper.h>
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <assimp/IOSystem.hpp>
 #include <assimp/Importer.hpp>
 
 #include <array>
 #include <exception>
+#include <set>
 #include <utility>
 
 #include "probebake/base/status.h"
@@ -40,6 +44,87 @@ Vec3d Apply(const Affine& m, const aiVector3D& p) {
           m[8] * x + m[9] * y + m[10] * z + m[11]};
 }
 
+// The file system assimp sees: nothing. Assimp opens the files a model names (a glTF buffer's
+// uri, an OBJ's mtllib) through its IO system, and a server must never open a path a request
+// names (SPEC 8); ReadFileFromMemory serves the model's own bytes and asks this for the rest.
+class NoFilesIOSystem : public Assimp::IOSystem {
+ public:
+  bool Exists(const char*) const override { return false; }
+  char getOsSeparator() const override { return '/'; }
+  Assimp::IOStream* Open(const char*, const char*) override { return nullptr; }
+  void Close(Assimp::IOStream* stream) override { delete stream; }
+};
+
+// Whether an importer that lists `format` among its extensions reads `bytes`. When several
+// importers list an extension (glTF 1 and 2 both list gltf and glb), assimp asks them; when none
+// accepts, it tries every importer it has by signature (an STL file sent as gltf was read as
+// STL), so the whole zoo of formats we do not support would be reachable. Formats with one
+// importer (obj, ply) go to it directly and need no question.
+bool ClaimedByAnImporterOf(std::string_view bytes, const std::string& format) {
+  Assimp::Importer importer;
+  std::vector<Assimp::BaseImporter*> claiming;
+  for (size_t i = 0; i < importer.GetImporterCount(); ++i) {
+    Assimp::BaseImporter* candidate = importer.GetImporter(i);
+    std::set<std::string> extensions;
+    candidate->GetExtensionList(extensions);
+    if (extensions.count(format) > 0) claiming.push_back(candidate);
+  }
+  if (claiming.size() <= 1) return true;
+  NoFilesIOSystem noFiles;
+  Assimp::MemoryIOSystem io(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size(), &noFiles);
+  const std::string file = std::string(AI_MEMORYIO_MAGIC_FILENAME) + "." + format;
+  for (Assimp::BaseImporter* candidate : claiming)
+    if (candidate->CanRead(file, &io, true)) return true;
+  return false;
+}
+
+// A PLY header's size cap: real headers are a few hundred bytes, comments included.
+constexpr size_t kMaxPlyHeaderBytes = size_t{1} << 20;
+
+// Checks what assimp's PLY reader trusts without checking (a header without end_header made it
+// loop forever, a NUL byte in the header crashed it): the header is text lines, starts with "ply",
+// names a known format and ends with an end_header line within kMaxPlyHeaderBytes. Returns the
+// reason the header is bad, or "" when it is sound.
+std::string PlyHeaderProblem(std::string_view bytes) {
+  const std::string_view window = bytes.substr(0, kMaxPlyHeaderBytes);
+  size_t lineStart = 0;
+  int line = 0;
+  bool formatSeen = false;
+  while (lineStart < window.size()) {
+    const size_t end = window.find('\n', lineStart);
+    if (end == std::string_view::npos) break;
+    std::string_view text = window.substr(lineStart, end - lineStart);
+    if (!text.empty() && text.back() == '\r') text.remove_suffix(1);
+    ++line;
+    for (size_t k = 0; k < text.size(); ++k) {
+      const unsigned char c = static_cast<unsigned char>(text[k]);
+      if ((c < 0x20 && c != '\t') || c > 0x7e) {
+        return "its header has a byte that is not text (" + std::to_string(int(c)) + ") on line " +
+               std::to_string(line);
+      }
+    }
+    if (line == 1) {
+      if (text != "ply") return "it does not start with a \"ply\" line";
+    } else if (text.rfind("format ", 0) == 0) {
+      if (text != "format ascii 1.0" && text != "format binary_little_endian 1.0" &&
+          text != "format binary_big_endian 1.0") {
+        return "line " + std::to_string(line) + " names an unknown format (\"" + std::string(text) +
+               "\")";
+      }
+      formatSeen = true;
+    } else if (text == "end_header") {
+      if (!formatSeen) return "its header has no format line";
+      return "";
+    }
+    lineStart = end + 1;
+  }
+  if (line == 0) return "it does not start with a \"ply\" line";
+  return "its header has no end_header line" +
+         std::string(bytes.size() > kMaxPlyHeaderBytes
+                         ? " in its first " + std::to_string(kMaxPlyHeaderBytes) + " bytes"
+                         : "");
+}
+
 }  // namespace
 
 absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::string& format,
@@ -49,7 +134,19 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
   if (bytes.empty())
     return FieldError(fieldPath, "cannot import " + what + " as " + format + ": the file is empty");
 
+  if (format == "ply") {
+    const std::string problem = PlyHeaderProblem(bytes);
+    if (!problem.empty())
+      return FieldError(fieldPath, "cannot import " + what + " as ply: " + problem);
+  }
+
+  if (!ClaimedByAnImporterOf(bytes, format)) {
+    return FieldError(
+        fieldPath, "cannot import " + what + " as " + format + ": it is not a " + format + " file");
+  }
+
   Assimp::Importer importer;
+  importer.SetIOHandler(new NoFilesIOSystem);  // the importer owns it
   // Points and lines are dropped entirely rather than kept as separate meshes.
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
                               aiPrimitiveType_POINT | aiPrimitiveType_LINE);
