@@ -2,16 +2,20 @@
 
 #include <openssl/rand.h>
 
+#include <algorithm>
 #include <fstream>
 #include <map>
 #include <thread>
 
 #include "absl/strings/escaping.h"
+#include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_replace.h"
 #include "probebake/base/check.h"
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
+#include "probebake/job/asset_source.h"
 #include "probebake/job/digest.h"
 #include "probebake/job/file_refs.h"
 #include "server/file_util.h"
@@ -144,13 +148,13 @@ absl::StatusOr<UploadReport> Client::UploadJobFiles(const std::filesystem::path&
   if (refs.empty()) return report;
   // Read and hash every file (the same file named twice is one blob).
   std::map<std::string, std::pair<std::string, v1::Digest>> files;  // relative path -> bytes
+  // The local bake's reader, for its checks and messages (a folder named as a file is refused,
+  // not uploaded as an empty blob); the server applies its own size limit.
+  const LocalAssetSource local(jobDir.string(), "", /*maxBytes=*/0);
   for (const FileReference& ref : refs) {
     if (files.count(ref.relativePath)) continue;
-    std::filesystem::path path = jobDir / ref.relativePath;
-    absl::StatusOr<std::string> bytes = server::ReadWholeFile(path);
-    if (!bytes.ok())
-      return FieldError(ref.fieldPath,
-                        absl::StrCat("cannot read '", ref.relativePath, "' (", path.string(), ")"));
+    absl::StatusOr<std::string> bytes = local.ReadFile(ref.relativePath, ref.fieldPath);
+    if (!bytes.ok()) return bytes.status();
     v1::Digest digest = DigestOf(*bytes);
     files.emplace(ref.relativePath, std::make_pair(std::move(*bytes), digest));
   }
@@ -163,13 +167,55 @@ absl::StatusOr<UploadReport> Client::UploadJobFiles(const std::filesystem::path&
   for (const v1::Digest& d : missing.missing_blob_digests()) missingHashes.insert(d.hash());
   for (const auto& [path, file] : files) {
     if (!missingHashes.count(file.second.hash())) continue;
-    PB_RETURN_IF_ERROR(UploadBlob(file.second, file.first, &report.bytesSent));
+    const absl::Status sent = UploadBlob(file.second, file.first, &report.bytesSent);
+    if (!sent.ok()) {
+      const std::string& field = std::find_if(refs.begin(), refs.end(), [&](const auto& ref) {
+                                   return ref.relativePath == path;
+                                 })->fieldPath;
+      return absl::Status(sent.code(),
+                          absl::StrCat(field, ": uploading \"", path, "\": ", sent.message()));
+    }
     ++report.uploaded;
   }
   // Rewrite in reverse so indices of later references stay valid whatever the rewrite does.
-  for (auto it = refs.rbegin(); it != refs.rend(); ++it)
-    PB_RETURN_IF_ERROR(ReplaceFileWithBlob(*it, files.at(it->relativePath).second, job));
+  for (auto it = refs.rbegin(); it != refs.rend(); ++it) {
+    const v1::Digest& digest = files.at(it->relativePath).second;
+    PB_RETURN_IF_ERROR(ReplaceFileWithBlob(*it, digest, job));
+    report.rewrites.push_back({it->fieldPath, it->relativePath, digest.hash()});
+  }
   return report;
+}
+
+absl::Status CheckServerAddress(const std::string& target) {
+  for (const char* scheme : {"dns:", "unix:", "unix-abstract:", "ipv4:", "ipv6:", "vsock:"})
+    if (absl::StartsWith(target, scheme)) return absl::OkStatus();
+  const size_t colon = target.rfind(':');
+  const std::string host = colon == std::string::npos ? "" : target.substr(0, colon);
+  const std::string port = colon == std::string::npos ? "" : target.substr(colon + 1);
+  int number = 0;
+  const bool portOk = !port.empty() && port.size() <= 5 &&
+                      port.find_first_not_of("0123456789") == std::string::npos &&
+                      absl::SimpleAtoi(port, &number) && number >= 1 && number <= 65535;
+  const bool bracketed = host.size() > 2 && host.front() == '[' && host.back() == ']';
+  const bool hostOk =
+      !host.empty() && (bracketed || host.find_first_of(":[]/ ") == std::string::npos);
+  if (portOk && hostOk) return absl::OkStatus();
+  return absl::InvalidArgumentError(absl::StrCat(
+      "\"", target, "\" is not HOST:PORT (a port from 1 to 65535, an IPv6 host in brackets) ",
+      "nor a gRPC target URI (dns:, unix:, ipv4:, ipv6:)"));
+}
+
+absl::Status NameUploadedFiles(const absl::Status& status, const UploadReport& uploads) {
+  if (status.ok() || uploads.rewrites.empty()) return status;
+  std::string message(status.message());
+  for (const UploadReport::Rewrite& r : uploads.rewrites) {
+    // "scene.meshes[0].file" -> "scene.meshes[0].blob" is the field the server names.
+    const std::string field = r.fieldPath.substr(0, r.fieldPath.rfind('.'));
+    message =
+        absl::StrReplaceAll(message, {{field + ".blob:", r.fieldPath + ":"},
+                                      {"\"blob " + r.hash + "\"", "\"" + r.relativePath + "\""}});
+  }
+  return absl::Status(status.code(), message);
 }
 
 absl::StatusOr<v1::BakeJob> Client::CreateJob(const v1::JobSpec& job, const std::string& requestId,
@@ -185,14 +231,19 @@ absl::StatusOr<v1::BakeJob> Client::CreateJob(const v1::JobSpec& job, const std:
     if (status.ok()) return created;
     if (status.error_code() != grpc::StatusCode::RESOURCE_EXHAUSTED || attempt >= maxAttempts)
       return FromGrpc(status);
-    int64_t retryMs = 5000;
+    // A full queue comes with the server's retry delay; without one the transport refused the
+    // request itself (larger than the server's message limit), which a retry cannot cure.
+    std::optional<int64_t> retryMs;
     for (const auto& [key, value] : context->GetServerTrailingMetadata()) {
-      if (key == "retry-after-ms")
-        (void)absl::SimpleAtoi(absl::string_view(value.data(), value.size()), &retryMs);
+      int64_t ms = 0;
+      if (key == "retry-after-ms" &&
+          absl::SimpleAtoi(absl::string_view(value.data(), value.size()), &ms))
+        retryMs = ms;
     }
-    retryMs = std::clamp<int64_t>(retryMs, 100, 60000);
-    Logger("client")->info("{}; retrying in {} ms", status.error_message(), retryMs);
-    std::this_thread::sleep_for(std::chrono::milliseconds(retryMs));
+    if (!retryMs) return FromGrpc(status);
+    retryMs = std::clamp<int64_t>(*retryMs, 100, 60000);
+    Logger("client")->info("{}; retrying in {} ms", status.error_message(), *retryMs);
+    std::this_thread::sleep_for(std::chrono::milliseconds(*retryMs));
   }
 }
 

@@ -10,6 +10,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <grpcpp/grpcpp.h>
 
@@ -31,7 +32,23 @@ struct UploadReport {
   int files = 0;          // file references in the job
   int uploaded = 0;       // blobs sent (the rest the server had)
   int64_t bytesSent = 0;  // bytes of the uploaded blobs
+  // Every file reference rewritten to a blob: its field ("scene.meshes[0].file"), its path as
+  // written, and the blob's hash.
+  struct Rewrite {
+    std::string fieldPath, relativePath, hash;
+  };
+  std::vector<Rewrite> rewrites;
 };
+
+// `status` with the server's names of uploaded files put back as the user wrote them: the
+// server reports "scene.meshes[0].blob: cannot import \"blob <hash>\" ...", the user's job says
+// "scene.meshes[0].file" and "room.obj".
+// OK when `target` can name a server: HOST:PORT (port 1-65535; an IPv6 host in brackets) or a
+// gRPC target URI (dns:, unix:, unix-abstract:, ipv4:, ipv6:, vsock:). INVALID_ARGUMENT saying why
+// not otherwise (gRPC would only report the server unreachable).
+absl::Status CheckServerAddress(const std::string& target);
+
+absl::Status NameUploadedFiles(const absl::Status& status, const UploadReport& uploads);
 
 class Client {
  public:

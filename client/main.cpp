@@ -94,6 +94,10 @@ absl::StatusOr<std::unique_ptr<Client>> ConnectFrom(const ClientFlags& flags) {
   options.server = !flags.server.empty()       ? flags.server
                    : (envServer && *envServer) ? envServer
                                                : "127.0.0.1:50051";
+  if (absl::Status address = CheckServerAddress(options.server); !address.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        flags.server.empty() ? "$PROBEBAKE_SERVER" : "--server", ": ", address.message()));
+  }
   if (!flags.tokenFile.empty()) {
     absl::StatusOr<std::string> token = server::ReadWholeFile(flags.tokenFile);
     if (!token.ok())
@@ -255,6 +259,32 @@ int Fetch(Client& client, const v1::BakeJob& job, const std::string& out, Progre
   return kExitOk;
 }
 
+// The job must fit in one CreateBakeJob message (files travel apart, as blobs): otherwise the
+// transport refuses it with a bare "larger than max". Names the largest inline mesh, what usually
+// makes a job that large.
+absl::Status FitsInOneMessage(const v1::JobSpec& spec, int64_t maxMessageBytes) {
+  // Room for the request's other fields and for blob digests replacing file paths.
+  constexpr int64_t kOverhead = 4096;
+  const int64_t bytes = int64_t(spec.ByteSizeLong()) + kOverhead;
+  if (maxMessageBytes <= 0 || bytes <= maxMessageBytes) return absl::OkStatus();
+  int largest = -1;
+  for (int i = 0; i < spec.scene().meshes_size(); ++i) {
+    if (largest < 0 ||
+        spec.scene().meshes(i).ByteSizeLong() > spec.scene().meshes(largest).ByteSizeLong())
+      largest = i;
+  }
+  std::string hint = "; large inline meshes belong in mesh files, which are uploaded as blobs";
+  if (largest >= 0) {
+    hint = absl::StrCat("; the largest part is scene.meshes[", largest, "] (",
+                        spec.scene().meshes(largest).ByteSizeLong(),
+                        " bytes): put it in a mesh file, which is uploaded as a blob");
+  }
+  return absl::InvalidArgumentError(absl::StrCat("the job is about ", bytes,
+                                                 " bytes as a request, over the server's message "
+                                                 "limit of ",
+                                                 maxMessageBytes, " bytes", hint));
+}
+
 int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
               const std::string& out, bool skipCache, std::string requestId) {
   absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
@@ -270,6 +300,8 @@ int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
   if (absl::Status valid = ValidateJobSpec(*spec, LimitsFrom(capabilities->job_limits()));
       !valid.ok())
     return Fail(valid, jobPath);
+  if (absl::Status fits = FitsInOneMessage(*spec, capabilities->max_message_bytes()); !fits.ok())
+    return Fail(fits, jobPath);
   absl::StatusOr<UploadReport> uploaded = (*client)->UploadJobFiles(JobFileDir(jobPath), &*spec);
   if (!uploaded.ok()) return Fail(uploaded.status(), jobPath);
   if (uploaded->files > 0)
@@ -278,7 +310,7 @@ int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
                            uploaded->files - uploaded->uploaded);
   if (requestId.empty()) requestId = NewRequestId();
   absl::StatusOr<v1::BakeJob> job = (*client)->CreateJob(*spec, requestId, skipCache);
-  if (!job.ok()) return Fail(job.status(), jobPath);
+  if (!job.ok()) return Fail(NameUploadedFiles(job.status(), *uploaded), jobPath);
   ProgressView view(ProgressView::Choose(flags.json));
   if (flags.json) {
     std::printf("%s\n", JobJson(*job).c_str());

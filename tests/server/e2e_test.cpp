@@ -297,6 +297,71 @@ TEST(EndToEnd, CliExitCodes) {
   EXPECT_EQ(server.process().Wait(seconds(10)), 0);
 }
 
+// What a server refuses is reported as the user wrote the job: the field and file, not the blob
+// the CLI uploaded for it; and inputs that once crashed or hung a server leave it serving.
+TEST(EndToEnd, CliNamesWhatItAndTheServerRefuse) {
+  TempDir dir;
+  const std::filesystem::path job = WriteJob(dir.path(), "job.json", 2, 2, 1, 16);
+  // 2, not 4: an address that cannot name a server.
+  RunResult garbage = Cli({"list", "--server", "garbage:::"});
+  EXPECT_EQ(garbage.exitCode, 2) << garbage.err;
+  EXPECT_NE(garbage.err.find("--server: \"garbage:::\" is not HOST:PORT"), std::string::npos)
+      << garbage.err;
+  RunResult badPort = Cli({"list"}, {{"PROBEBAKE_SERVER", "127.0.0.1:99999"}});
+  EXPECT_EQ(badPort.exitCode, 2) << badPort.err;
+  EXPECT_NE(badPort.err.find("$PROBEBAKE_SERVER"), std::string::npos) << badPort.err;
+
+  ServerProcess server(dir.path());
+  const std::map<std::string, std::string> env = {{"PROBEBAKE_SERVER", server.address()}};
+  const std::string base = ReadFile(job);
+  auto variant = [&](const std::string& name, const std::string& meshFile) {
+    std::string json = base;
+    json.replace(json.find("\"box.obj\""), 9, "\"" + meshFile + "\"");
+    std::ofstream(dir.path() / name) << json;
+    return (dir.path() / name).string();
+  };
+  // A folder named as a mesh file is refused, not uploaded as an empty blob.
+  std::filesystem::create_directory(dir.path() / "folder.obj");
+  RunResult folder = Cli({"submit", variant("folder.json", "folder.obj")}, env);
+  EXPECT_EQ(folder.exitCode, 2) << folder.err;
+  EXPECT_NE(folder.err.find("scene.meshes[0].file: cannot read \"folder.obj\""), std::string::npos)
+      << folder.err;
+  EXPECT_NE(folder.err.find("not a regular file"), std::string::npos) << folder.err;
+  // The server's import error names the file as written.
+  std::ofstream(dir.path() / "bad.ply") << "ply\nformat ascii 1.0\nelement vertex 3\n";
+  RunResult bad = Cli({"submit", variant("bad.json", "bad.ply")}, env);
+  EXPECT_EQ(bad.exitCode, 2) << bad.err;
+  EXPECT_NE(bad.err.find("bad.json: scene.meshes[0].file: cannot import \"bad.ply\" as ply: its "
+                         "header has no end_header line"),
+            std::string::npos)
+      << bad.err;
+  EXPECT_EQ(bad.err.find("blob"), std::string::npos) << bad.err;
+  // A NUL byte in a PLY header crashed the server (assimp); it must still answer afterwards.
+  std::ofstream(dir.path() / "nul.ply", std::ios::binary)
+      << std::string("ply\nformat binary_little_endian 1.0\nelement vertex 3\n\0end_header\n", 65);
+  RunResult nul = Cli({"submit", variant("nul.json", "nul.ply")}, env);
+  EXPECT_EQ(nul.exitCode, 2) << nul.err;
+  EXPECT_NE(nul.err.find("not text"), std::string::npos) << nul.err;
+  EXPECT_EQ(Cli({"list"}, env).exitCode, 0);
+
+  // A job too large for one request message: refused by the CLI, naming the culprit.
+  std::string positions = "0,0,0";
+  for (int i = 1; i < 200000; ++i) positions += ",0.123456789,0.987654321," + std::to_string(i);
+  std::string huge = base;
+  const std::string from = R"("positions": [)";
+  huge.replace(huge.find(from) + from.size(),
+               huge.find(']', huge.find(from)) - huge.find(from) - from.size(), positions);
+  std::ofstream(dir.path() / "huge.json") << huge;
+  RunResult tooLarge = Cli({"submit", (dir.path() / "huge.json").string()}, env);
+  EXPECT_EQ(tooLarge.exitCode, 2) << tooLarge.err;
+  EXPECT_NE(tooLarge.err.find("over the server's message limit"), std::string::npos)
+      << tooLarge.err;
+  EXPECT_NE(tooLarge.err.find("scene.meshes[1]"), std::string::npos) << tooLarge.err;
+
+  server.process().Signal(SIGTERM);
+  EXPECT_EQ(server.process().Wait(seconds(10)), 0);
+}
+
 TEST(EndToEnd, TlsWithToken) {
   TempDir dir;
   auto cert = dir.path() / "cert.pem", key = dir.path() / "key.pem";
