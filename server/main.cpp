@@ -2,17 +2,24 @@
 //
 //   probebake-server --listen ADDR --data-dir DIR [--threads N] [--max-concurrent-jobs N]
 //                    [--max-queued-jobs N] [--token-file F] [--tls-cert F --tls-key F]
-//                    [--max-probes N ...] [--config FILE] [--port-file F] [--log-level L]
+//                    [--max-probes N ...] [--asset-check-timeout S] [--config FILE]
+//                    [--port-file F] [--log-level L]
 //
 // Exit codes: 0 after a graceful shutdown (SIGTERM or SIGINT), 2 for bad flags, 1 when the
 // server cannot start (data folder in use, port taken, unreadable token or certificate).
 #include <signal.h>
 
+#include <chrono>
 #include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
 #include "probebake/base/log.h"
+#include "server/asset_check.h"
+#include "server/blob_store.h"
 #include "server/file_util.h"
 #include "server/server.h"
 
@@ -87,6 +94,15 @@ int main(int argc, char** argv) {
   app.add_option("--max-blob-bytes", options.maxBlobBytes, "Bytes per uploaded blob")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  int assetCheckSeconds = 600;
+  app.add_option("--asset-check-timeout", assetCheckSeconds,
+                 "Seconds a job's mesh and map files may take to import (in a child process, so "
+                 "that a file that crashes or hangs the importer cannot take the server with it)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  // The child side of that check (asset_check.h); not for people.
+  std::string checkJobAssets;
+  app.add_option("--check-job-assets", checkJobAssets)->group("");
   app.add_option("--checkpoint-interval", options.checkpointIntervalSeconds,
                  "Seconds between checkpoints of a running bake")
       ->check(CLI::PositiveNumber)
@@ -96,6 +112,11 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     int code = app.exit(e);
     return code == 0 ? 0 : kExitUsage;
+  }
+  if (!checkJobAssets.empty()) {
+    // The server logs what matters about the check; the child stays quiet.
+    probebake::SetLogLevel(spdlog::level::warn);
+    return srv::RunAssetCheckChild(checkJobAssets, dataDir, options.maxBlobBytes, options.limits);
   }
   probebake::SetLogLevel(spdlog::level::from_str(logLevel));
   options.dataDir = dataDir;
@@ -111,7 +132,23 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGINT);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  auto server = srv::ProbebakeServer::Start(options, srv::ProductionBackend);
+  // Every job's assets are imported in a child first: this executable, with these flags.
+  std::vector<std::string> self(argv, argv + argc);
+  self[0] = "/proc/self/exe";
+  const auto checkTimeout = std::chrono::seconds(assetCheckSeconds);
+  auto backend = [&self, checkTimeout](const srv::BlobStore* blobs,
+                                       const probebake::JobLimits& limits) {
+    srv::BakeBackend production = srv::ProductionBackend(blobs, limits);
+    auto check = std::make_shared<const srv::AssetCheck>(self, blobs->tmpDir(), checkTimeout);
+    production.build =
+        [check, build = production.build](
+            const probebake::v1::JobSpec& spec) -> absl::StatusOr<probebake::BakeJob> {
+      if (absl::Status checked = check->Check(spec); !checked.ok()) return checked;
+      return build(spec);
+    };
+    return production;
+  };
+  auto server = srv::ProbebakeServer::Start(options, backend);
   if (!server.ok()) {
     Logger("server")->error("cannot start: {}", std::string(server.status().message()));
     return absl::IsInvalidArgument(server.status()) ? kExitUsage : kExitStartFailure;

@@ -1,0 +1,50 @@
+// A job's assets imported first in a child process, so that a file that crashes or hangs an
+// importer (assimp has both kinds of bug) costs a child, not the server (SPEC 6: a server never
+// dies on a client's input).
+//
+// The server runs the check before it builds a job in process: the child
+// (`probebake-server <the server's own flags> --check-job-assets SPEC_FILE`) opens the blob store,
+// builds the job exactly as the server would (same limits, same code) and reports on stdout:
+//   one line "asset <fieldPath>" as it starts reading each asset, then "status <code>" and the
+//   status message to the end.
+// The parent turns a child killed by a signal or past the time limit into INVALID_ARGUMENT naming
+// the asset the child was reading; a clean report is returned as the child's status. Importing is
+// deterministic, so a job the child built the parent builds the same way.
+#pragma once
+
+#include <chrono>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "probebake/job/limits.h"
+#include "probebake/v1/job.pb.h"
+
+namespace probebake::server {
+
+class AssetCheck {
+ public:
+  // `argv`: the child's command line without the --check-job-assets argument (the server's own
+  // executable and flags). `tmpDir`: where the spec file for the child is written.
+  AssetCheck(std::vector<std::string> argv, std::filesystem::path tmpDir,
+             std::chrono::seconds timeout);
+
+  // OK when `spec` has no mesh or map blob, or the child built it; the child's error otherwise,
+  // or INVALID_ARGUMENT "<field>: ..." when importing crashed or ran past the time limit.
+  // INTERNAL when the child could not be run at all.
+  absl::Status Check(const v1::JobSpec& spec) const;
+
+ private:
+  std::vector<std::string> argv_;
+  std::filesystem::path tmpDir_;
+  std::chrono::seconds timeout_;
+};
+
+// The child's side: reads the JobSpec (binary protobuf) at `specFile`, builds it over the blob
+// store under `dataDir` with `limits`, and writes the report above to stdout. Returns the process
+// exit code (0 when a report was written, whatever its status).
+int RunAssetCheckChild(const std::filesystem::path& specFile, const std::filesystem::path& dataDir,
+                       int64_t maxBlobBytes, const JobLimits& limits);
+
+}  // namespace probebake::server

@@ -1,0 +1,81 @@
+// The parent side of the asset check (asset_check.h), with stand-in children: a shell that
+// reports, crashes, hangs or exits without a report. The real child runs in the e2e tests.
+#include "server/asset_check.h"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <filesystem>
+
+namespace probebake::server {
+namespace {
+
+using std::chrono::seconds;
+
+// A job with one uploaded mesh: the check runs only when a job has asset blobs.
+v1::JobSpec JobWithAMeshBlob() {
+  v1::JobSpec spec;
+  v1::Mesh* mesh = spec.mutable_scene()->add_meshes();
+  mesh->mutable_blob()->set_hash(std::string(64, 'a'));
+  mesh->mutable_blob()->set_size_bytes(10);
+  mesh->set_format("ply");
+  return spec;
+}
+
+// The stand-in child: `script` run by sh; the arguments the check appends become $0 and $1.
+AssetCheck Child(const std::string& script, seconds timeout = seconds(30)) {
+  return AssetCheck({"/bin/sh", "-c", script}, std::filesystem::temp_directory_path(), timeout);
+}
+
+TEST(AssetCheck, AJobWithoutAssetsRunsNoChild) {
+  v1::JobSpec spec;
+  spec.mutable_scene()->add_meshes()->add_positions(0);
+  EXPECT_TRUE(Child("exit 9").Check(spec).ok());
+}
+
+TEST(AssetCheck, TheChildsReportIsTheResult) {
+  EXPECT_TRUE(Child("echo asset scene.meshes[0].blob; printf 'status 0\\n'")
+                  .Check(JobWithAMeshBlob())
+                  .ok());
+  const absl::Status refused =
+      Child(
+          "echo asset scene.meshes[0].blob; printf 'status 3\\nscene.meshes[0].blob: bad\\nand "
+          "more'")
+          .Check(JobWithAMeshBlob());
+  EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument) << refused;
+  EXPECT_EQ(refused.message(), "scene.meshes[0].blob: bad\nand more");
+}
+
+TEST(AssetCheck, ACrashNamesTheAssetBeingRead) {
+  const absl::Status crashed =
+      Child("echo asset scene.meshes[0].blob; echo asset scene.environment.map.blob; kill -SEGV $$")
+          .Check(JobWithAMeshBlob());
+  EXPECT_EQ(crashed.code(), absl::StatusCode::kInvalidArgument) << crashed;
+  EXPECT_EQ(crashed.message(),
+            "scene.environment.map.blob: the importer crashed on this file (signal 11); the file "
+            "is malformed");
+}
+
+TEST(AssetCheck, AHangIsKilledAtTheTimeLimit) {
+  const auto start = std::chrono::steady_clock::now();
+  const absl::Status hung =
+      Child("echo asset scene.meshes[0].blob; exec sleep 30", seconds(1)).Check(JobWithAMeshBlob());
+  EXPECT_LT(std::chrono::steady_clock::now() - start, seconds(20));
+  EXPECT_EQ(hung.code(), absl::StatusCode::kInvalidArgument) << hung;
+  EXPECT_EQ(hung.message(),
+            "scene.meshes[0].blob: importing this file took longer than the server's limit of 1 s "
+            "(the file is malformed or too large)");
+}
+
+TEST(AssetCheck, NoReportIsAnInternalError) {
+  const absl::Status silent = Child("exit 5").Check(JobWithAMeshBlob());
+  EXPECT_EQ(silent.code(), absl::StatusCode::kInternal) << silent;
+  EXPECT_NE(silent.message().find("exited with code 5"), absl::string_view::npos) << silent;
+  const absl::Status missing =
+      AssetCheck({"/nonexistent/checker"}, std::filesystem::temp_directory_path(), seconds(5))
+          .Check(JobWithAMeshBlob());
+  EXPECT_EQ(missing.code(), absl::StatusCode::kInternal) << missing;
+}
+
+}  // namespace
+}  // namespace probebake::server
