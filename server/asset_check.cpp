@@ -16,6 +16,7 @@
 #include "absl/strings/str_cat.h"
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
+#include "probebake/job/digest.h"
 #include "probebake/job/job.h"
 #include "server/bake_backend.h"
 #include "server/blob_store.h"
@@ -90,11 +91,26 @@ AssetCheck::AssetCheck(std::vector<std::string> argv, std::filesystem::path tmpD
 
 absl::Status AssetCheck::Check(const v1::JobSpec& spec) const {
   if (!HasAssetBlobs(spec)) return absl::OkStatus();
+  const std::string specBytes = spec.SerializeAsString();
+  const std::string key = Sha256Hex(specBytes);
+  {
+    std::lock_guard lock(mutex_);
+    if (passed_.count(key)) return absl::OkStatus();
+  }
+  absl::Status status = CheckInChild(specBytes);
+  if (status.ok()) {
+    std::lock_guard lock(mutex_);
+    passed_.insert(key);
+  }
+  return status;
+}
+
+absl::Status AssetCheck::CheckInChild(const std::string& specBytes) const {
   const auto log = Logger("server");
   // A name no other check uses at the same time.
   const std::filesystem::path specFile =
       tmpDir_ / absl::StrCat("asset-check-", getpid(), "-", std::random_device{}(), ".pb");
-  PB_RETURN_IF_ERROR(WriteFileAtomic(specFile, spec.SerializeAsString()));
+  PB_RETURN_IF_ERROR(WriteFileAtomic(specFile, specBytes));
   struct RemoveFile {
     std::filesystem::path path;
     ~RemoveFile() {

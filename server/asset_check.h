@@ -14,6 +14,8 @@
 
 #include <chrono>
 #include <filesystem>
+#include <mutex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -32,13 +34,18 @@ class AssetCheck {
 
   // OK when `spec` has no mesh or map blob, or the child built it; the child's error otherwise,
   // or INVALID_ARGUMENT "<field>: ..." when importing crashed or ran past the time limit.
-  // INTERNAL when the child could not be run at all.
+  // INTERNAL when the child could not be run at all. A spec that passed once passes again without
+  // a child (a job is built when it is created and again when it starts). Thread-safe.
   absl::Status Check(const v1::JobSpec& spec) const;
 
  private:
   std::vector<std::string> argv_;
   std::filesystem::path tmpDir_;
   std::chrono::seconds timeout_;
+  absl::Status CheckInChild(const std::string& specBytes) const;
+
+  mutable std::mutex mutex_;
+  mutable std::set<std::string> passed_;  // SHA-256 of the specs that passed
 };
 
 // The child's side: reads the JobSpec (binary protobuf) at `specFile`, builds it over the blob

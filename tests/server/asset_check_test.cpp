@@ -3,9 +3,12 @@
 #include "server/asset_check.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
+#include <fstream>
+#include <string>
 
 namespace probebake::server {
 namespace {
@@ -27,6 +30,13 @@ AssetCheck Child(const std::string& script, seconds timeout = seconds(30)) {
   return AssetCheck({"/bin/sh", "-c", script}, std::filesystem::temp_directory_path(), timeout);
 }
 
+int ReadLines(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  int lines = 0;
+  for (std::string line; std::getline(in, line);) ++lines;
+  return lines;
+}
+
 TEST(AssetCheck, AJobWithoutAssetsRunsNoChild) {
   v1::JobSpec spec;
   spec.mutable_scene()->add_meshes()->add_positions(0);
@@ -44,6 +54,24 @@ TEST(AssetCheck, TheChildsReportIsTheResult) {
           .Check(JobWithAMeshBlob());
   EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument) << refused;
   EXPECT_EQ(refused.message(), "scene.meshes[0].blob: bad\nand more");
+}
+
+TEST(AssetCheck, APassedSpecIsNotCheckedAgainAFailedOneIs) {
+  const std::filesystem::path runs =
+      std::filesystem::temp_directory_path() / ("asset-check-runs-" + std::to_string(getpid()));
+  std::filesystem::remove(runs);
+  const AssetCheck good = Child("echo run >> " + runs.string() + "; printf 'status 0\\n'");
+  EXPECT_TRUE(good.Check(JobWithAMeshBlob()).ok());
+  EXPECT_TRUE(good.Check(JobWithAMeshBlob()).ok());
+  v1::JobSpec other = JobWithAMeshBlob();
+  other.mutable_scene()->mutable_meshes(0)->set_format("obj");
+  EXPECT_TRUE(good.Check(other).ok());
+  EXPECT_EQ(ReadLines(runs), 2);  // the first spec once, the other once
+  const AssetCheck bad = Child("echo run >> " + runs.string() + "; printf 'status 3\\nno'");
+  EXPECT_FALSE(bad.Check(JobWithAMeshBlob()).ok());
+  EXPECT_FALSE(bad.Check(JobWithAMeshBlob()).ok());
+  EXPECT_EQ(ReadLines(runs), 4);
+  std::filesystem::remove(runs);
 }
 
 TEST(AssetCheck, ACrashNamesTheAssetBeingRead) {
