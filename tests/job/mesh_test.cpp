@@ -265,7 +265,7 @@ TEST(MeshImport, OnlyTheNamedFormatIsTried) {
   EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "m.gltf").status(), "scene.meshes[0].file",
                             "cannot import \"m.gltf\" as gltf: it is not a gltf file"));
   EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "m.glb").status(), "scene.meshes[0].file",
-                            "cannot import \"m.glb\" as glb: it is not a glb file"));
+                            "cannot import \"m.glb\" as glb: it does not start with a GLB header"));
 }
 
 TEST(MeshImport, PlyHeadersAreCheckedBeforeAssimpReadsThem) {
@@ -303,6 +303,90 @@ TEST(MeshImport, PlyHeadersAreCheckedBeforeAssimpReadsThem) {
   crlf += "4 0 1 2 3\r\n3 4 1 2\r\n";
   dir.Write("crlf.ply", crlf);
   ExpectPlyMesh(BuildMeshJob(dir, "crlf.ply", "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]"));
+}
+
+TEST(MeshImport, PlyBodiesMustHoldWhatTheHeaderDeclares) {
+  // Fuzzed files whose declared sizes assimp trusted: it ran for ever, or asserted and aborted.
+  TempDir dir;
+  std::string binary = PlyHeader("binary_little_endian");
+  auto put = [&binary](const void* p, size_t n) { binary.append(static_cast<const char*>(p), n); };
+  for (const auto& v : kPlyVertices) put(v, sizeof v);
+  const uint8_t four = 4, three = 3;
+  const int32_t quad[4] = {0, 1, 2, 3}, tri[3] = {4, 1, 2};
+  put(&four, 1);
+  put(quad, sizeof quad);
+  put(&three, 1);
+  put(tri, sizeof tri);
+  auto replaced = [](std::string text, const std::string& from, const std::string& to) {
+    text.replace(text.find(from), from.size(), to);
+    return text;
+  };
+  std::string ascii = PlyHeader("ascii");
+  for (const auto& v : kPlyVertices)
+    ascii += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\n";
+  ascii += "4 0 1 2 3\n3 4 1 2\n";
+  std::string garbageCount = binary;
+  garbageCount[PlyHeader("binary_little_endian").size() + sizeof kPlyVertices] = char(200);
+  const struct {
+    std::string bytes;
+    std::string message;
+  } cases[] = {
+      {replaced(binary, "element vertex 5", "element vertex 99999999999"),
+       "the body ends before element 'vertex' item"},
+      {replaced(ascii, "element face 2", "element face 99999999999"),
+       "the body ends before element 'face' item"},
+      {garbageCount, "the body ends inside element 'face' item 0"},
+      {replaced(binary, "property list uchar int", "property list int int"),
+       "the body ends inside element 'face' item"},
+      {replaced(ascii, "4 0 1 2 3", "-4 0 1 2 3"),
+       "element 'face' item 0 has a list count that is not a non-negative integer"},
+      {replaced(binary, "element face 2\nproperty list uchar int vertex_indices\n",
+                "element face 2\n"),
+       "element 'face' has items but no properties"},
+      {replaced(binary, "property float z", "property float32x z"),
+       "its header has a property of unknown type on line 6"},
+      {replaced(binary, "list uchar int", "list float int"),
+       "its header has a list property of unknown or non-integer count type on line 8"},
+      {binary.substr(0, binary.size() - 1), "the body ends inside element 'face' item 1"},
+  };
+  for (const auto& c : cases) {
+    dir.Write("m.ply", c.bytes);
+    EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "m.ply").status(), "scene.meshes[0].file",
+                              "cannot import \"m.ply\" as ply: " + c.message))
+        << c.message;
+  }
+  // Sound structure that assimp's triangulation asserted on: a face with no vertex.
+  dir.Write("m.ply", replaced(ascii, "4 0 1 2 3", "0"));
+  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "m.ply").status(), "scene.meshes[0].file",
+                            "\"m.ply\" has a face without vertices"));
+  // The complete files, and tabs between header words, are fine.
+  dir.Write("m.ply", replaced(binary, "element vertex 5", "element\tvertex\t5"));
+  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]"));
+  dir.Write("m.ply", ascii);
+  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]"));
+}
+
+TEST(MeshImport, GlbChunksMustFitInTheFile) {
+  // A GLB whose JSON chunk declared 4 GiB had assimp allocate and clear 4 GiB.
+  TempDir dir;
+  std::string json = GltfJson("", GltfBuffer().size());
+  while (json.size() % 4) json += ' ';
+  std::string glb;
+  auto u32 = [&glb](uint32_t x) { glb.append(reinterpret_cast<const char*>(&x), 4); };
+  u32(0x46546C67);  // "glTF"
+  u32(2);
+  u32(uint32_t(12 + 8 + json.size()));
+  u32(0xFFFFFFFFu);
+  u32(0x4E4F534A);  // "JSON"
+  glb += json;
+  dir.Write("m.glb", glb);
+  EXPECT_TRUE(
+      HasFieldError(BuildMeshJob(dir, "m.glb").status(), "scene.meshes[0].file",
+                    "cannot import \"m.glb\" as glb: GLB chunk 0 declares 4294967295 bytes"));
+  glb.replace(8, 4, std::string("\xff\xff\x00\x00", 4));  // total length past the file
+  dir.Write("m.glb", glb);
+  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "m.glb").status(), "scene.meshes[0].file",
+                            "its GLB header declares 65535 bytes; the file has"));
 }
 
 TEST(MeshImport, TriangleLimitCountsFilesAndInlineMeshes) {

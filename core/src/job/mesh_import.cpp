@@ -13,6 +13,7 @@
 #include <set>
 #include <utility>
 
+#include "mesh_file_check.h"
 #include "probebake/base/status.h"
 #include "text.h"
 
@@ -78,53 +79,6 @@ bool ClaimedByAnImporterOf(std::string_view bytes, const std::string& format) {
   return false;
 }
 
-// A PLY header's size cap: real headers are a few hundred bytes, comments included.
-constexpr size_t kMaxPlyHeaderBytes = size_t{1} << 20;
-
-// Checks what assimp's PLY reader trusts without checking (a header without end_header made it
-// loop forever, a NUL byte in the header crashed it): the header is text lines, starts with "ply",
-// names a known format and ends with an end_header line within kMaxPlyHeaderBytes. Returns the
-// reason the header is bad, or "" when it is sound.
-std::string PlyHeaderProblem(std::string_view bytes) {
-  const std::string_view window = bytes.substr(0, kMaxPlyHeaderBytes);
-  size_t lineStart = 0;
-  int line = 0;
-  bool formatSeen = false;
-  while (lineStart < window.size()) {
-    const size_t end = window.find('\n', lineStart);
-    if (end == std::string_view::npos) break;
-    std::string_view text = window.substr(lineStart, end - lineStart);
-    if (!text.empty() && text.back() == '\r') text.remove_suffix(1);
-    ++line;
-    for (size_t k = 0; k < text.size(); ++k) {
-      const unsigned char c = static_cast<unsigned char>(text[k]);
-      if ((c < 0x20 && c != '\t') || c > 0x7e) {
-        return "its header has a byte that is not text (" + std::to_string(int(c)) + ") on line " +
-               std::to_string(line);
-      }
-    }
-    if (line == 1) {
-      if (text != "ply") return "it does not start with a \"ply\" line";
-    } else if (text.rfind("format ", 0) == 0) {
-      if (text != "format ascii 1.0" && text != "format binary_little_endian 1.0" &&
-          text != "format binary_big_endian 1.0") {
-        return "line " + std::to_string(line) + " names an unknown format (\"" + std::string(text) +
-               "\")";
-      }
-      formatSeen = true;
-    } else if (text == "end_header") {
-      if (!formatSeen) return "its header has no format line";
-      return "";
-    }
-    lineStart = end + 1;
-  }
-  if (line == 0) return "it does not start with a \"ply\" line";
-  return "its header has no end_header line" +
-         std::string(bytes.size() > kMaxPlyHeaderBytes
-                         ? " in its first " + std::to_string(kMaxPlyHeaderBytes) + " bytes"
-                         : "");
-}
-
 }  // namespace
 
 absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::string& format,
@@ -134,10 +88,10 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
   if (bytes.empty())
     return FieldError(fieldPath, "cannot import " + what + " as " + format + ": the file is empty");
 
-  if (format == "ply") {
-    const std::string problem = PlyHeaderProblem(bytes);
+  if (format == "ply" || format == "glb") {
+    const std::string problem = format == "ply" ? PlyProblem(bytes) : GlbProblem(bytes);
     if (!problem.empty())
-      return FieldError(fieldPath, "cannot import " + what + " as ply: " + problem);
+      return FieldError(fieldPath, "cannot import " + what + " as " + format + ": " + problem);
   }
 
   if (!ClaimedByAnImporterOf(bytes, format)) {
@@ -150,11 +104,29 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
   // Points and lines are dropped entirely rather than kept as separate meshes.
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
                               aiPrimitiveType_POINT | aiPrimitiveType_LINE);
-  const unsigned flags =
-      aiProcess_Triangulate | aiProcess_SortByPType | aiProcess_ValidateDataStructure;
+  // Read and validate first, triangulate after: assimp's triangulation asserts (aborts) on faces
+  // that index no vertex or past the mesh's vertices, which fuzzed PLY files produce.
   const aiScene* scene = nullptr;
   try {
-    scene = importer.ReadFileFromMemory(bytes.data(), bytes.size(), flags, format.c_str());
+    scene = importer.ReadFileFromMemory(bytes.data(), bytes.size(), aiProcess_ValidateDataStructure,
+                                        format.c_str());
+    if (scene != nullptr) {
+      for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+        const aiMesh* mesh = scene->mMeshes[m];
+        if (mesh == nullptr || (mesh->mNumFaces > 0 && mesh->mFaces == nullptr))
+          return FieldError(fieldPath, what + " has a malformed mesh");
+        for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
+          const aiFace& face = mesh->mFaces[f];
+          if (face.mNumIndices == 0 || face.mIndices == nullptr)
+            return FieldError(fieldPath, what + " has a face without vertices");
+          for (unsigned k = 0; k < face.mNumIndices; ++k) {
+            if (face.mIndices[k] >= mesh->mNumVertices)
+              return FieldError(fieldPath, what + " has a vertex index out of range");
+          }
+        }
+      }
+      scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_SortByPType);
+    }
   } catch (const std::exception& e) {
     return FieldError(fieldPath, "cannot import " + what + " as " + format + ": " + e.what());
   }

@@ -1,0 +1,265 @@
+#include "mesh_file_check.h"
+
+#include <cstdint>
+#include <cstring>
+#include <vector>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_split.h"
+
+namespace probebake::job_internal {
+namespace {
+
+// A PLY header's size cap: real headers are a few hundred bytes, comments included.
+constexpr size_t kMaxHeaderBytes = size_t{1} << 20;
+
+enum class Format { kAscii, kLittleEndian, kBigEndian };
+
+struct Property {
+  bool list = false;
+  int countBytes = 0;  // list: size of the count
+  bool countSigned = false;
+  int bytes = 0;  // scalar size, or a list item's size
+};
+
+struct Element {
+  std::string name;
+  uint64_t count = 0;
+  std::vector<Property> properties;
+};
+
+// Size of a PLY scalar type (0 when unknown), and whether it is an integer and signed.
+int TypeBytes(absl::string_view type, bool* integer = nullptr, bool* isSigned = nullptr) {
+  struct Type {
+    const char* name;
+    int bytes;
+    bool integer, isSigned;
+  };
+  static constexpr Type kTypes[] = {
+      {"char", 1, true, true},     {"int8", 1, true, true},     {"uchar", 1, true, false},
+      {"uint8", 1, true, false},   {"short", 2, true, true},    {"int16", 2, true, true},
+      {"ushort", 2, true, false},  {"uint16", 2, true, false},  {"int", 4, true, true},
+      {"int32", 4, true, true},    {"uint", 4, true, false},    {"uint32", 4, true, false},
+      {"float", 4, false, true},   {"float32", 4, false, true}, {"double", 8, false, true},
+      {"float64", 8, false, true},
+  };
+  for (const Type& t : kTypes) {
+    if (type == t.name) {
+      if (integer) *integer = t.integer;
+      if (isSigned) *isSigned = t.isSigned;
+      return t.bytes;
+    }
+  }
+  return 0;
+}
+
+// A list count of `bytes` bytes at `p`, in the file's byte order; -1 for a negative one.
+int64_t ReadCount(const unsigned char* p, int bytes, bool isSigned, bool bigEndian) {
+  uint64_t u = 0;
+  for (int k = 0; k < bytes; ++k)
+    u |= uint64_t(p[bigEndian ? k : bytes - 1 - k]) << (8 * (bytes - 1 - k));
+  if (isSigned && (u >> (8 * bytes - 1)) & 1) return -1;
+  return int64_t(u);
+}
+
+std::string Where(const Element& e, uint64_t item) {
+  return "element '" + e.name + "' item " + std::to_string(item);
+}
+
+std::string CheckBinary(std::string_view body, const std::vector<Element>& elements,
+                        bool bigEndian) {
+  const auto* p = reinterpret_cast<const unsigned char*>(body.data());
+  uint64_t left = body.size();
+  for (const Element& e : elements) {
+    if (e.count == 0) continue;
+    uint64_t fixed = 0;
+    bool lists = false;
+    for (const Property& q : e.properties) {
+      fixed += uint64_t(q.list ? q.countBytes : q.bytes);
+      lists = lists || q.list;
+    }
+    // Every item needs at least its fixed bytes: a count past the body is refused before looping.
+    if (e.count > left / fixed) return "the body ends before " + Where(e, left / fixed);
+    if (!lists) {
+      p += e.count * fixed;
+      left -= e.count * fixed;
+      continue;
+    }
+    for (uint64_t i = 0; i < e.count; ++i) {
+      for (const Property& q : e.properties) {
+        const uint64_t head = uint64_t(q.list ? q.countBytes : q.bytes);
+        if (left < head) return "the body ends inside " + Where(e, i);
+        if (!q.list) {
+          p += head;
+          left -= head;
+          continue;
+        }
+        const int64_t n = ReadCount(p, q.countBytes, q.countSigned, bigEndian);
+        p += head;
+        left -= head;
+        if (n < 0) return Where(e, i) + " has a negative list count";
+        if (uint64_t(n) > left / uint64_t(q.bytes)) return "the body ends inside " + Where(e, i);
+        p += uint64_t(n) * q.bytes;
+        left -= uint64_t(n) * q.bytes;
+      }
+    }
+  }
+  return "";
+}
+
+std::string CheckAscii(std::string_view body, const std::vector<Element>& elements) {
+  size_t at = 0;
+  // The next whitespace-separated token, or an empty view at the end.
+  auto next = [&]() -> std::string_view {
+    while (at < body.size() && std::strchr(" \t\r\n", body[at]) != nullptr) ++at;
+    const size_t start = at;
+    while (at < body.size() && std::strchr(" \t\r\n", body[at]) == nullptr) ++at;
+    return body.substr(start, at - start);
+  };
+  for (const Element& e : elements) {
+    if (e.count == 0) continue;
+    // Every item needs a number and a separator per property at least.
+    const uint64_t perItem = 2 * e.properties.size();
+    if (e.count > (body.size() - at + 1) / perItem) {
+      return "the body ends before " + Where(e, (body.size() - at + 1) / perItem);
+    }
+    for (uint64_t i = 0; i < e.count; ++i) {
+      for (const Property& q : e.properties) {
+        const std::string_view token = next();
+        if (token.empty()) return "the body ends inside " + Where(e, i);
+        if (!q.list) continue;
+        int64_t n = 0;
+        if (!absl::SimpleAtoi(absl::string_view(token.data(), token.size()), &n) || n < 0)
+          return Where(e, i) + " has a list count that is not a non-negative integer";
+        if (uint64_t(n) > (body.size() - at + 1) / 2) return "the body ends inside " + Where(e, i);
+        for (int64_t k = 0; k < n; ++k) {
+          if (next().empty()) return "the body ends inside " + Where(e, i);
+        }
+      }
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
+std::string PlyProblem(std::string_view bytes) {
+  const std::string_view window = bytes.substr(0, kMaxHeaderBytes);
+  std::vector<Element> elements;
+  size_t lineStart = 0;
+  int line = 0;
+  bool formatSeen = false;
+  Format format = Format::kAscii;
+  while (lineStart < window.size()) {
+    const size_t end = window.find('\n', lineStart);
+    if (end == std::string_view::npos) break;
+    std::string_view text = window.substr(lineStart, end - lineStart);
+    if (!text.empty() && text.back() == '\r') text.remove_suffix(1);
+    lineStart = end + 1;
+    ++line;
+    const std::string at = " on line " + std::to_string(line);
+    for (const char ch : text) {
+      const auto c = static_cast<unsigned char>(ch);
+      if ((c < 0x20 && c != '\t') || c > 0x7e)
+        return "its header has a byte that is not text (" + std::to_string(int(c)) + ")" + at;
+    }
+    const std::vector<absl::string_view> words = absl::StrSplit(
+        absl::string_view(text.data(), text.size()), absl::ByAnyChar(" \t"), absl::SkipEmpty());
+    if (line == 1) {
+      if (text != "ply") return "it does not start with a \"ply\" line";
+      continue;
+    }
+    if (words.empty() || words[0] == "comment" || words[0] == "obj_info") continue;
+    if (words[0] == "format") {
+      if (formatSeen) return "its header has a second format line" + at;
+      if (words.size() != 3 || words[2] != "1.0")
+        return "line " + std::to_string(line) + " names an unknown format (\"" + std::string(text) +
+               "\")";
+      if (words[1] == "ascii") {
+        format = Format::kAscii;
+      } else if (words[1] == "binary_little_endian") {
+        format = Format::kLittleEndian;
+      } else if (words[1] == "binary_big_endian") {
+        format = Format::kBigEndian;
+      } else {
+        return "line " + std::to_string(line) + " names an unknown format (\"" + std::string(text) +
+               "\")";
+      }
+      formatSeen = true;
+    } else if (words[0] == "element") {
+      Element e;
+      if (words.size() != 3 || !absl::SimpleAtoi(words[2], &e.count))
+        return "its header has a malformed element line" + at;
+      e.name = std::string(words[1]);
+      elements.push_back(std::move(e));
+    } else if (words[0] == "property") {
+      if (elements.empty()) return "its header has a property before any element" + at;
+      Property q;
+      if (words.size() == 5 && words[1] == "list") {
+        bool integer = false;
+        q.list = true;
+        q.countBytes = TypeBytes(words[2], &integer, &q.countSigned);
+        q.bytes = TypeBytes(words[3]);
+        if (q.countBytes == 0 || !integer || q.bytes == 0)
+          return "its header has a list property of unknown or non-integer count type" + at;
+      } else if (words.size() == 3) {
+        q.bytes = TypeBytes(words[1]);
+        if (q.bytes == 0) return "its header has a property of unknown type" + at;
+      } else {
+        return "its header has a malformed property line" + at;
+      }
+      elements.back().properties.push_back(q);
+    } else if (words[0] == "end_header" && words.size() == 1) {
+      if (!formatSeen) return "its header has no format line";
+      for (const Element& e : elements) {
+        if (e.count > 0 && e.properties.empty())
+          return "element '" + e.name + "' has items but no properties";
+      }
+      const std::string_view body = bytes.substr(lineStart);
+      return format == Format::kAscii ? CheckAscii(body, elements)
+                                      : CheckBinary(body, elements, format == Format::kBigEndian);
+    } else {
+      return "its header has an unknown line" + at + " (\"" + std::string(text.substr(0, 40)) +
+             "\")";
+    }
+  }
+  if (line == 0) return "it does not start with a \"ply\" line";
+  return "its header has no end_header line" +
+         std::string(bytes.size() > kMaxHeaderBytes
+                         ? " in its first " + std::to_string(kMaxHeaderBytes) + " bytes"
+                         : "");
+}
+
+std::string GlbProblem(std::string_view bytes) {
+  auto u32 = [&](size_t at) {
+    uint32_t v = 0;
+    for (int k = 3; k >= 0; --k) v = (v << 8) | static_cast<unsigned char>(bytes[at + size_t(k)]);
+    return v;
+  };
+  if (bytes.size() < 20 || bytes.substr(0, 4) != "glTF")
+    return "it does not start with a GLB header";
+  const uint32_t version = u32(4);
+  const uint64_t length = u32(8);
+  if (version != 1 && version != 2) return "its GLB version is " + std::to_string(version);
+  if (length > bytes.size() || length < 20) {
+    return "its GLB header declares " + std::to_string(length) + " bytes; the file has " +
+           std::to_string(bytes.size());
+  }
+  if (version == 1) {
+    if (u32(12) > length - 20) return "its GLB content does not fit in the file";
+    return "";
+  }
+  uint64_t at = 12;
+  for (int chunk = 0; at + 8 <= length; ++chunk) {
+    const uint64_t size = u32(at);
+    if (chunk == 0 && bytes.substr(at + 4, 4) != "JSON") return "its first GLB chunk is not JSON";
+    if (size > length - at - 8) {
+      return "GLB chunk " + std::to_string(chunk) + " declares " + std::to_string(size) +
+             " bytes; " + std::to_string(length - at - 8) + " are left";
+    }
+    at += 8 + size;
+  }
+  return "";
+}
+
+}  // namespace probebake::job_internal

@@ -1,0 +1,27 @@
+// Structural checks of mesh files before assimp reads them (private to core/src/job).
+//
+// Assimp trusts the sizes a file declares: fuzzed PLY files crashed it (a NUL byte in the header)
+// or made it run for ever (no end_header line; an element count of 10^11; a list property whose
+// count, read from garbage, is huge), and a GLB chunk declaring 4 GiB had it allocate and clear
+// 4 GiB. These checks accept only files whose declared parts fit in the bytes that are there.
+#pragma once
+
+#include <string>
+#include <string_view>
+
+namespace probebake::job_internal {
+
+// "" when `bytes` is a structurally sound PLY file: a text header of "ply", one known format line
+// (ascii, binary_little_endian or binary_big_endian, version 1.0), element and property lines of
+// known types (list counts of an integer type), comments, and an end_header line within the first
+// MiB; then a body holding every element instance the header declares (binary: the exact bytes,
+// list counts non-negative; ascii: enough numbers, list counts non-negative integers). Trailing
+// bytes are allowed. Otherwise the reason, for a message ("its header has no end_header line").
+std::string PlyProblem(std::string_view bytes);
+
+// "" when `bytes` is a GLB container whose declared sizes fit: magic "glTF", version 1 or 2, a
+// total length no larger than the file, and (version 2) chunks that each fit in that length, the
+// first of them JSON; (version 1) content that fits. Otherwise the reason.
+std::string GlbProblem(std::string_view bytes);
+
+}  // namespace probebake::job_internal
