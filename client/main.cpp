@@ -13,6 +13,7 @@
 #include <signal.h>
 
 #include <atomic>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 
@@ -27,6 +28,7 @@
 #include "probebake/bake/bake.h"
 #include "probebake/base/log.h"
 #include "probebake/job/asset_source.h"
+#include "probebake/job/file_refs.h"
 #include "probebake/job/job.h"
 #include "probebake/job/job_json.h"
 #include "probebake/job/validate.h"
@@ -34,6 +36,7 @@
 #include "probebake/volume/vdb_io.h"
 #include "probebake/volume/volume_inspect.h"
 #include "probebake/volume/volume_merge.h"
+#include "server/asset_check.h"
 #include "server/bake_backend.h"
 #include "server/file_util.h"
 #include "server/job_state.h"
@@ -135,7 +138,17 @@ int CheckOutput(const std::string& out) {
   return kExitOk;
 }
 
+// A job's mesh and map files are imported in a child first (server/asset_check.h): a file that
+// crashes or hangs the importer is reported with its field instead of taking the CLI with it.
+constexpr std::chrono::seconds kAssetCheckTimeout{600};
+
 int RunBake(const std::string& jobPath, const std::string& out, int threads, bool json) {
+  if (absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
+      spec.ok() && !ListFileReferences(*spec).empty()) {
+    const absl::Status checked =
+        server::RunAssetCheck({"/proc/self/exe", "check-assets", jobPath}, kAssetCheckTimeout);
+    if (!checked.ok()) return Fail(checked, jobPath);
+  }
   absl::StatusOr<BakeJob> job = LoadBakeJob(jobPath, JobLimits());
   if (!job.ok()) return Fail(kExitUsage, std::string(job.status().message()));
   if (const int code = CheckOutput(out); code != kExitOk) return code;
@@ -404,6 +417,10 @@ int Main(int argc, char** argv) {
   bake->add_option("--threads", threads, "Worker threads (0: all)")->check(CLI::NonNegativeNumber);
   bake->add_flag("--json", json, "Progress and result as JSON lines on stdout");
 
+  // The child of the local bake's asset check (server/asset_check.h); not for people.
+  CLI::App* checkAssets = app.add_subcommand("check-assets");
+  checkAssets->group("");
+  checkAssets->add_option("job", jobPath)->required();
   CLI::App* inspect = app.add_subcommand("inspect", "Describe a probe volume file");
   inspect->add_option("volume", path, "Probe volume (.vdb)")->required();
   inspect->add_flag("--json", json, "One JSON object on stdout");
@@ -449,6 +466,7 @@ int Main(int argc, char** argv) {
   }
   SetLogLevel(spdlog::level::from_str(logLevel));
 
+  if (*checkAssets) return server::RunLocalAssetCheckChild(jobPath, JobLimits());
   if (*bake) return RunBake(jobPath, out, threads, json);
   if (*inspect) return RunInspect(path, json, slice, out);
   if (*merge) return RunMerge(parts, out);

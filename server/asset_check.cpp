@@ -18,6 +18,7 @@
 #include "probebake/base/status.h"
 #include "probebake/job/digest.h"
 #include "probebake/job/job.h"
+#include "probebake/job/job_json.h"
 #include "server/bake_backend.h"
 #include "server/blob_store.h"
 #include "server/file_util.h"
@@ -40,6 +41,8 @@ class AnnouncingAssetSource final : public AssetSource {
   explicit AnnouncingAssetSource(const AssetSource& inner) : inner_(inner) {}
   absl::StatusOr<std::string> ReadFile(const std::string& relativePath,
                                        const std::string& fieldPath) const override {
+    std::printf("asset %s\n", fieldPath.c_str());
+    std::fflush(stdout);
     return inner_.ReadFile(relativePath, fieldPath);
   }
   absl::StatusOr<std::string> ReadBlob(const v1::Digest& digest,
@@ -106,7 +109,6 @@ absl::Status AssetCheck::Check(const v1::JobSpec& spec) const {
 }
 
 absl::Status AssetCheck::CheckInChild(const std::string& specBytes) const {
-  const auto log = Logger("server");
   // A name no other check uses at the same time.
   const std::filesystem::path specFile =
       tmpDir_ / absl::StrCat("asset-check-", getpid(), "-", std::random_device{}(), ".pb");
@@ -118,13 +120,17 @@ absl::Status AssetCheck::CheckInChild(const std::string& specBytes) const {
       std::filesystem::remove(path, ignored);
     }
   } removeSpec{specFile};
-
-  int out[2];
-  if (pipe2(out, O_CLOEXEC) != 0)
-    return absl::InternalError(absl::StrCat("asset check: pipe: ", std::strerror(errno)));
   std::vector<std::string> args = argv_;
   args.push_back("--check-job-assets");
   args.push_back(specFile.string());
+  return RunAssetCheck(std::move(args), timeout_);
+}
+
+absl::Status RunAssetCheck(std::vector<std::string> args, std::chrono::seconds timeout) {
+  const auto log = Logger("assets");
+  int out[2];
+  if (pipe2(out, O_CLOEXEC) != 0)
+    return absl::InternalError(absl::StrCat("asset check: pipe: ", std::strerror(errno)));
   std::vector<char*> argvPointers;
   for (std::string& a : args) argvPointers.push_back(a.data());
   argvPointers.push_back(nullptr);
@@ -153,7 +159,7 @@ absl::Status AssetCheck::CheckInChild(const std::string& specBytes) const {
 
   // Read the report until the child closes stdout or the time runs out.
   std::string report;
-  const auto deadline = std::chrono::steady_clock::now() + timeout_;
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
   bool timedOut = false;
   for (;;) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
@@ -181,10 +187,10 @@ absl::Status AssetCheck::CheckInChild(const std::string& specBytes) const {
   const Report parsed = ParseReport(report);
   const std::string field = parsed.lastAsset.empty() ? "scene" : parsed.lastAsset;
   if (timedOut) {
-    log->warn("asset check of {} ran past {} s: killed", field, timeout_.count());
+    log->warn("asset check of {} ran past {} s: killed", field, timeout.count());
     return absl::InvalidArgumentError(
-        absl::StrCat(field, ": importing this file took longer than the server's limit of ",
-                     timeout_.count(), " s (the file is malformed or too large)"));
+        absl::StrCat(field, ": importing this file took longer than the limit of ", timeout.count(),
+                     " s (the file is malformed or too large)"));
   }
   if (WIFSIGNALED(waitStatus)) {
     log->warn("asset check of {} crashed (signal {})", field, WTERMSIG(waitStatus));
@@ -200,13 +206,23 @@ absl::Status AssetCheck::CheckInChild(const std::string& specBytes) const {
   return parsed.status;
 }
 
+int ReportAssetCheck(const absl::Status& status) {
+  std::printf("status %d\n%s", int(status.code()), std::string(status.message()).c_str());
+  std::fflush(stdout);
+  return 0;
+}
+
+int RunLocalAssetCheckChild(const std::string& jobPath, const JobLimits& limits) {
+  absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
+  if (!spec.ok()) return ReportAssetCheck(spec.status());
+  const LocalAssetSource files(JobFileDir(jobPath), "", limits.maxAssetBytes);
+  const AnnouncingAssetSource assets(files);
+  return ReportAssetCheck(BuildBakeJob(*spec, assets, limits).status());
+}
+
 int RunAssetCheckChild(const std::filesystem::path& specFile, const std::filesystem::path& dataDir,
                        int64_t maxBlobBytes, const JobLimits& limits) {
-  auto report = [](const absl::Status& status) {
-    std::printf("status %d\n%s", int(status.code()), std::string(status.message()).c_str());
-    std::fflush(stdout);
-    return 0;
-  };
+  const auto report = ReportAssetCheck;
   absl::StatusOr<std::string> bytes = ReadWholeFile(specFile);
   if (!bytes.ok()) return report(absl::InternalError(bytes.status().message()));
   v1::JobSpec spec;

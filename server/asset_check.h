@@ -1,6 +1,6 @@
 // A job's assets imported first in a child process, so that a file that crashes or hangs an
 // importer (assimp has both kinds of bug) costs a child, not the server (SPEC 6: a server never
-// dies on a client's input).
+// dies on a client's input) or the local CLI.
 //
 // The server runs the check before it builds a job in process: the child
 // (`probebake-server <the server's own flags> --check-job-assets SPEC_FILE`) opens the blob store,
@@ -48,7 +48,15 @@ class AssetCheck {
   mutable std::set<std::string> passed_;  // SHA-256 of the specs that passed
 };
 
-// The child's side: reads the JobSpec (binary protobuf) at `specFile`, builds it over the blob
+// Runs the check command `argv` (the child prints the report above) and interprets its outcome
+// as AssetCheck::Check describes; what the local CLI uses, with its own child.
+absl::Status RunAssetCheck(std::vector<std::string> argv, std::chrono::seconds timeout);
+
+// The local CLI's child: builds the job file at `jobPath` with its files (as a local bake reads
+// them) and writes the report to stdout. Returns the exit code (0 when a report was written).
+int RunLocalAssetCheckChild(const std::string& jobPath, const JobLimits& limits);
+
+// The server's child: reads the JobSpec (binary protobuf) at `specFile`, builds it over the blob
 // store under `dataDir` with `limits`, and writes the report above to stdout. Returns the process
 // exit code (0 when a report was written, whatever its status).
 int RunAssetCheckChild(const std::filesystem::path& specFile, const std::filesystem::path& dataDir,

@@ -389,6 +389,48 @@ TEST(MeshImport, GlbChunksMustFitInTheFile) {
                             "its GLB header declares 65535 bytes; the file has"));
 }
 
+TEST(MeshImport, GltfNodesMustFormShallowTrees) {
+  // Shared children doubled the scene at every level (22 levels: 2.7 GB); deep chains and deeply
+  // nested JSON overflowed assimp's stack.
+  TempDir dir;
+  const std::string bin = GltfBuffer();
+  const std::string base =
+      GltfJson("data:application/octet-stream;base64," + absl::Base64Escape(bin), bin.size());
+  auto withNodes = [&](const std::string& nodes) {
+    std::string json = base;
+    const size_t from = json.find("\"nodes\": [{");
+    const size_t to = json.find("\"meshes\"");
+    return json.replace(from, to - from, "\"nodes\": " + nodes + ",\n    ");
+  };
+  std::string chain = "[";
+  for (int i = 0; i < 1100; ++i) chain += "{\"children\": [" + std::to_string(i + 1) + "]}, ";
+  chain += "{\"mesh\": 0}]";
+  std::string deepJson = base;
+  deepJson.replace(deepJson.find("\"asset\""), 0,
+                   "\"extras\": " + std::string(150, '[') + std::string(150, ']') + ", ");
+  const struct {
+    std::string json;
+    std::string message;
+  } cases[] = {
+      {withNodes(R"([{"children": [1, 1]}, {"mesh": 0}, {"mesh": 0}])"),
+       "node 1 has two parents (glTF nodes form trees)"},
+      {withNodes(R"([{"children": [1]}, {"children": [2]}, {"children": [1], "mesh": 0}])"),
+       "node 1 has two parents"},
+      {withNodes(R"([{"children": [1]}, {"children": [0], "mesh": 0}, {"mesh": 0}])"),
+       "its nodes form a cycle"},
+      {withNodes(R"([{"children": [7]}, {"mesh": 0}, {"mesh": 0}])"),
+       "node 0 names a child that does not exist"},
+      {withNodes(chain), "its nodes nest deeper than 1000 levels"},
+      {deepJson, "its JSON nests deeper than 100 levels"},
+  };
+  for (const auto& c : cases) {
+    dir.Write("m.gltf", c.json);
+    EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "m.gltf").status(), "scene.meshes[0].file",
+                              "cannot import \"m.gltf\" as gltf: " + c.message))
+        << c.message;
+  }
+}
+
 TEST(MeshImport, TriangleLimitCountsFilesAndInlineMeshes) {
   TempDir dir;
   dir.Write("scene.obj", kObj);  // 3 triangles

@@ -91,7 +91,7 @@ TEST(AssetCheck, AHangIsKilledAtTheTimeLimit) {
   EXPECT_LT(std::chrono::steady_clock::now() - start, seconds(20));
   EXPECT_EQ(hung.code(), absl::StatusCode::kInvalidArgument) << hung;
   EXPECT_EQ(hung.message(),
-            "scene.meshes[0].blob: importing this file took longer than the server's limit of 1 s "
+            "scene.meshes[0].blob: importing this file took longer than the limit of 1 s "
             "(the file is malformed or too large)");
 }
 

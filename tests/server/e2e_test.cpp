@@ -344,6 +344,21 @@ TEST(EndToEnd, CliNamesWhatItAndTheServerRefuse) {
   EXPECT_NE(nul.err.find("not text"), std::string::npos) << nul.err;
   EXPECT_EQ(Cli({"list"}, env).exitCode, 0);
 
+  // Files that crash assimp past every structural check (data/line_loop_one_index.gltf, from
+  // fuzzing: a LINE_LOOP of one index aborts assimp 5.2) are imported in a child first, by the
+  // server and by a local bake: either way a clean refusal naming the field, never a dead process.
+  std::filesystem::copy_file(kData / "line_loop_one_index.gltf", dir.path() / "loop.gltf");
+  const std::string loopJob = variant("loop.json", "loop.gltf");
+  RunResult loopServer = Cli({"submit", loopJob}, env);
+  EXPECT_EQ(loopServer.exitCode, 2) << loopServer.err;
+  EXPECT_NE(loopServer.err.find("loop.json: scene.meshes[0].file: "), std::string::npos)
+      << loopServer.err;
+  EXPECT_EQ(Cli({"list"}, env).exitCode, 0);
+  RunResult loopLocal = Cli({"bake", loopJob, "-o", (dir.path() / "loop.vdb").string()});
+  EXPECT_EQ(loopLocal.exitCode, 2) << loopLocal.err;
+  EXPECT_NE(loopLocal.err.find("loop.json: scene.meshes[0].file: "), std::string::npos)
+      << loopLocal.err;
+
   // A job too large for one request message: refused by the CLI, naming the culprit.
   std::string positions = "0,0,0";
   for (int i = 1; i < 200000; ++i) positions += ",0.123456789,0.987654321," + std::to_string(i);

@@ -4,6 +4,11 @@
 #include <cstring>
 #include <vector>
 
+#include <google/protobuf/struct.pb.h>
+#include <google/protobuf/util/json_util.h>
+
+#include <cmath>
+
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
 
@@ -258,6 +263,71 @@ std::string GlbProblem(std::string_view bytes) {
              " bytes; " + std::to_string(length - at - 8) + " are left";
     }
     at += 8 + size;
+  }
+  return "";
+}
+
+std::string GltfNodeProblem(std::string_view json) {
+  // Nesting first, by a scan: parsers recurse per level (200000 levels crashed assimp's and made
+  // protobuf's crawl), and no glTF needs more than a few dozen.
+  constexpr int kMaxNesting = 100;
+  int nesting = 0;
+  bool inString = false;
+  for (size_t k = 0; k < json.size(); ++k) {
+    const char c = json[k];
+    if (inString) {
+      if (c == '\\')
+        ++k;
+      else if (c == '"')
+        inString = false;
+    } else if (c == '"') {
+      inString = true;
+    } else if (c == '[' || c == '{') {
+      if (++nesting > kMaxNesting)
+        return "its JSON nests deeper than " + std::to_string(kMaxNesting) + " levels";
+    } else if (c == ']' || c == '}') {
+      --nesting;
+    }
+  }
+  google::protobuf::Value root;
+  if (!google::protobuf::util::JsonStringToMessage(std::string(json), &root).ok()) return "";
+  const auto& fields = root.struct_value().fields();
+  const auto nodesField = fields.find("nodes");
+  if (nodesField == fields.end()) return "";
+  const auto& nodes = nodesField->second.list_value().values();
+  const int count = nodes.size();
+  std::vector<int> parent(size_t(count), -1);
+  for (int i = 0; i < count; ++i) {
+    const auto& node = nodes[i].struct_value().fields();
+    const auto children = node.find("children");
+    if (children == node.end()) continue;
+    for (const google::protobuf::Value& c : children->second.list_value().values()) {
+      const double index = c.number_value();
+      if (!(index >= 0 && index < count) || index != std::floor(index))
+        return "node " + std::to_string(i) + " names a child that does not exist";
+      const int child = int(index);
+      if (parent[size_t(child)] >= 0 || child == i)
+        return "node " + std::to_string(child) + " has two parents (glTF nodes form trees)";
+      parent[size_t(child)] = i;
+    }
+  }
+  // With one parent each, a node's depth is its chain of parents; a chain longer than the node
+  // count is a cycle.
+  constexpr int kMaxDepth = 1000;
+  std::vector<int> depth(size_t(count), -1);
+  for (int i = 0; i < count; ++i) {
+    int d = 0;
+    for (int n = i; n >= 0 && depth[size_t(n)] < 0; n = parent[size_t(n)]) {
+      if (++d > count) return "its nodes form a cycle";
+    }
+    // Fill the chain's depths from the top down (the top's known depth, or 0 at a root).
+    std::vector<int> chain;
+    int n = i;
+    for (; n >= 0 && depth[size_t(n)] < 0; n = parent[size_t(n)]) chain.push_back(n);
+    int base = n >= 0 ? depth[size_t(n)] + 1 : 0;
+    for (auto it = chain.rbegin(); it != chain.rend(); ++it) depth[size_t(*it)] = base++;
+    if (depth[size_t(i)] > kMaxDepth)
+      return "its nodes nest deeper than " + std::to_string(kMaxDepth) + " levels";
   }
   return "";
 }
