@@ -7,6 +7,7 @@
 // builds the job exactly as the server would (same limits, same code) and reports on stdout:
 //   one line "asset <fieldPath>" as it starts reading each asset, then "status <code>" and the
 //   status message to the end.
+// A local bake does the same with `probebake check-assets JOB.json`, which reads the job's files.
 // The parent turns a child killed by a signal or past the time limit into INVALID_ARGUMENT naming
 // the asset the child was reading; a clean report is returned as the child's status. Importing is
 // deterministic, so a job the child built the parent builds the same way.
@@ -39,11 +40,11 @@ class AssetCheck {
   absl::Status Check(const v1::JobSpec& spec) const;
 
  private:
+  absl::Status CheckInChild(const std::string& specBytes) const;
+
   std::vector<std::string> argv_;
   std::filesystem::path tmpDir_;
   std::chrono::seconds timeout_;
-  absl::Status CheckInChild(const std::string& specBytes) const;
-
   mutable std::mutex mutex_;
   mutable std::set<std::string> passed_;  // SHA-256 of the specs that passed
 };
