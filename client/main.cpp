@@ -466,7 +466,10 @@ int Main(int argc, char** argv) {
   }
   SetLogLevel(spdlog::level::from_str(logLevel));
 
-  if (*checkAssets) return server::RunLocalAssetCheckChild(jobPath, JobLimits());
+  if (*checkAssets) {
+    SetLogLevel(spdlog::level::warn);  // the bake that spawned it logs what matters
+    return server::RunLocalAssetCheckChild(jobPath, JobLimits());
+  }
   if (*bake) return RunBake(jobPath, out, threads, json);
   if (*inspect) return RunInspect(path, json, slice, out);
   if (*merge) return RunMerge(parts, out);
