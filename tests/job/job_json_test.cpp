@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+
 #include <cmath>
 
 #include "job/test_util.h"
@@ -34,6 +36,27 @@ TEST(ParseJobJson, ExampleParses) {
   EXPECT_TRUE(job->settings().has_target_rel_error());
   EXPECT_TRUE(job->settings().irradiance());
   EXPECT_EQ(job->settings().window(), v1::BakeSettings::NONE);
+}
+
+TEST(ParseJobJson, DeepNestingIsRefusedBeforeParsing) {
+  // protobuf's JSON parser slows quadratically with depth: 20000 levels in `spacing` (a
+  // google.protobuf.Value) took 29 s to be refused. Brackets inside strings do not count.
+  auto spacing = [](int levels) {
+    return R"({"grid": {"min": [0, 0, 0], "max": [1, 1, 1], "spacing": )" +
+           std::string(size_t(levels), '[') + std::string(size_t(levels), ']') + "}}";
+  };
+  const auto start = std::chrono::steady_clock::now();
+  const absl::Status deep = ParseJobJson(spacing(200000)).status();
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));
+  EXPECT_EQ(deep.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(deep.message(), "invalid JSON: arrays and objects nest deeper than 32 levels");
+  // The job's own two levels plus 30: at the limit, parsed (and refused for what it says).
+  EXPECT_EQ(ParseJobJson(spacing(30)).status().message().find("nest deeper"), std::string::npos);
+  EXPECT_NE(ParseJobJson(spacing(31)).status().message().find("nest deeper"), std::string::npos);
+  const std::string quoted =
+      R"({"scene": {"materials": [{"name": ")" + std::string(100, '[') +
+      R"(\""}]}, "grid": {"min": [0, 0, 0], "max": [1, 1, 1], "counts": [1, 1, 1]}})";
+  EXPECT_TRUE(ParseJobJson(quoted).ok()) << ParseJobJson(quoted).status();
 }
 
 TEST(ParseJobJson, UnknownFieldsAtEveryDepth) {

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "errors.h"
+#include "json_nesting.h"
 #include "probebake/base/utf8.h"
 #include "text.h"
 
@@ -592,6 +593,12 @@ google::protobuf::StringPiece Piece(std::string_view s) {
 
 absl::StatusOr<v1::JobSpec> ParseJobJson(std::string_view json) {
   if (json.starts_with("\xEF\xBB\xBF")) json.remove_prefix(3);
+  // A job nests 5 levels deep; protobuf's parser slows quadratically with depth.
+  constexpr int kMaxNesting = 32;
+  if (job_internal::JsonNestsDeeperThan(json, kMaxNesting)) {
+    return absl::InvalidArgumentError("invalid JSON: arrays and objects nest deeper than " +
+                                      std::to_string(kMaxNesting) + " levels");
+  }
   google::protobuf::util::JsonParseOptions options;
   options.ignore_unknown_fields = false;
 

@@ -11,6 +11,7 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
+#include "json_nesting.h"
 
 namespace probebake::job_internal {
 namespace {
@@ -268,27 +269,9 @@ std::string GlbProblem(std::string_view bytes) {
 }
 
 std::string GltfNodeProblem(std::string_view json) {
-  // Nesting first, by a scan: parsers recurse per level (200000 levels crashed assimp's and made
-  // protobuf's crawl), and no glTF needs more than a few dozen.
   constexpr int kMaxNesting = 100;
-  int nesting = 0;
-  bool inString = false;
-  for (size_t k = 0; k < json.size(); ++k) {
-    const char c = json[k];
-    if (inString) {
-      if (c == '\\')
-        ++k;
-      else if (c == '"')
-        inString = false;
-    } else if (c == '"') {
-      inString = true;
-    } else if (c == '[' || c == '{') {
-      if (++nesting > kMaxNesting)
-        return "its JSON nests deeper than " + std::to_string(kMaxNesting) + " levels";
-    } else if (c == ']' || c == '}') {
-      --nesting;
-    }
-  }
+  if (JsonNestsDeeperThan(json, kMaxNesting))
+    return "its JSON nests deeper than " + std::to_string(kMaxNesting) + " levels";
   google::protobuf::Value root;
   if (!google::protobuf::util::JsonStringToMessage(std::string(json), &root).ok()) return "";
   const auto& fields = root.struct_value().fields();
