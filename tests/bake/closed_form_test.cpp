@@ -210,6 +210,26 @@ TEST(ClosedForm, DiskAndSphereLightsSubtendCaps) {
   ExpectProjection(r, CapProjection(4, axis, std::sqrt(1 - 0.25 / 4)), L, "sphere light");
 }
 
+TEST(ClosedForm, TinyAndFarSphereLightsStayExact) {
+  // A sphere of radius r at distance d covers the solid angle 2 pi (1 - cos) = pi r^2 / d^2 (to
+  // r^2 / 4 d^2 relative). With cos computed as sqrt(1 - r^2 / d^2) the cap rounded to nothing
+  // from r / d ~ 1e-8 (pdf infinite, the bake NaN) and was 2% off at 1e-7. Light sampling is all
+  // that finds such a light, and every sample then gives L Y00 times the cap's solid angle: L0 is
+  // exact to rounding (the stored float's 6e-8 relative).
+  const Vec3d axis = Normalize(Vec3d{0.3, -0.4, 1});
+  for (const double r : {1e-9, 1e-7, 1e-4}) {
+    const Vec3d L = Vec3d{1, 1, 1} * (1 / (r * r));
+    BakeJob job = MakeJob(2, 256);
+    job.scene.lights.push_back(SphereLight{axis, r, L});
+    const ProbeResult probe = Probe(BakeOrDie(job), 0);
+    const double expected = L.x * M_PI * r * r * (1 + r * r / 4) * (0.5 / std::sqrt(M_PI));
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(probe.radiance[0][c], expected, 2e-7 * expected) << "r / d = " << r;
+    for (const Vec3d& coefficient : probe.radiance)
+      EXPECT_TRUE(std::isfinite(coefficient.x)) << "r / d = " << r;
+  }
+}
+
 TEST(ClosedForm, SunDisksOfSeveralSizes) {
   // A sun of angular diameter 2 theta gives radiance E / (pi sin^2 theta) over the cap.
   for (double diameterDeg : {0.53, 30.0}) {

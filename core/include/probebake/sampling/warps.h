@@ -143,15 +143,24 @@ inline Vec2d InvertCosineHemisphereSample(const Vec3d& w) {
 // so no step cancels: for a cap as small as the sun's (0.27 deg, 1 - cosThetaMax ~ 1e-5) the
 // subtraction 1 - cosThetaMax is exact (Sterbenz) and the only error left is the caller's
 // rounding of cosThetaMax (relative 1e-16 / 1e-5 = 1e-11 on the cap's solid angle in double).
-inline Vec3d SampleUniformCone(Vec2d u, double cosThetaMax) {
-  const double t = u.x * (1 - cosThetaMax);
+// The same cap given by oneMinusCosThetaMax = 1 - cosThetaMax in (0, 2], for caps so small that
+// cosThetaMax rounds to 1 (a sphere light of radius r at distance d: 1 - cos ~ r^2 / 2d^2, below
+// ulp(1) from r / d ~ 1e-8).
+inline Vec3d SampleUniformConeFromOneMinusCos(Vec2d u, double oneMinusCosThetaMax) {
+  const double t = u.x * oneMinusCosThetaMax;
   const double sinTheta = std::sqrt(std::max(0.0, t * (2 - t)));
   const SinCos phi = SinCosTurns(u.y);
   return {sinTheta * phi.cos, sinTheta * phi.sin, 1 - t};
 }
+inline double UniformConePdfFromOneMinusCos(double oneMinusCosThetaMax) {
+  return detail::kInv2Pi / oneMinusCosThetaMax;
+}
+inline Vec3d SampleUniformCone(Vec2d u, double cosThetaMax) {
+  return SampleUniformConeFromOneMinusCos(u, 1 - cosThetaMax);
+}
 // Density inside the cap (the caller tests membership: cos(theta) >= cosThetaMax).
 inline double UniformConePdf(double cosThetaMax) {
-  return detail::kInv2Pi / (1 - cosThetaMax);
+  return UniformConePdfFromOneMinusCos(1 - cosThetaMax);
 }
 // w must be unit length and inside the cap.
 inline Vec2d InvertUniformConeSample(const Vec3d& w, double cosThetaMax) {
