@@ -200,6 +200,21 @@ TEST(EnvironmentMap, DefaultsSpelledOutGiveTheSameDigests) {
   EXPECT_EQ(black->sceneDigest, noEnvironment->sceneDigest);
 }
 
+TEST(EnvironmentMap, PixelsTimesScaleBeyondWhatFloatsHoldAreRefused) {
+  TempDir dir;
+  Image image;
+  image.Set(3, 4, 5e28f, 0, 0);
+  WriteExr(dir, "sun.exr", image);
+  EXPECT_TRUE(BuildEnvJob(dir, R"({"file": "sun.exr", "scale": 10})").ok());
+  EXPECT_TRUE(HasFieldError(BuildEnvJob(dir, R"({"file": "sun.exr", "scale": 100})").status(),
+                            "scene.environment.map.scale",
+                            "times the scale (100) is more than 1e30"));
+  image.Set(3, 4, 1e31f, 0, 0);
+  WriteExr(dir, "sun.exr", image);
+  EXPECT_TRUE(HasFieldError(BuildEnvJob(dir, R"({"file": "sun.exr"})").status(),
+                            "scene.environment.map.file", "is more than 1e30"));
+}
+
 TEST(EnvironmentMap, LuminanceOnlyIsGrey) {
   TempDir dir;
   Image image;

@@ -37,6 +37,19 @@ TEST(ValidateJobSpec, ExampleIsValid) {
   EXPECT_TRUE(Check(Example()).ok()) << Check(Example());
 }
 
+TEST(ValidateJobSpec, LightsBeyondWhatFloatsHoldAreRefused) {
+  // An intensity of 1e39 baked to inf in the volume's floats; 1e30 leaves room for projection.
+  for (const char* path :
+       {"scene.lights[0].point.intensity[1]", "scene.lights[1].spot.intensity[0]",
+        "scene.lights[2].directional.irradiance[2]", "scene.lights[3].rect.radiance[0]",
+        "scene.lights[4].disk.radiance[1]", "scene.lights[5].sphere.radiance[2]",
+        "scene.materials[1].emission[0]", "scene.environment.uniform.radiance[1]"}) {
+    EXPECT_TRUE(HasFieldError(CheckPatched(path, "1.5e30"), path, "1.5e+30 is more than 1e30"))
+        << path;
+    EXPECT_TRUE(CheckPatched(path, "1e30").ok()) << path << ": " << CheckPatched(path, "1e30");
+  }
+}
+
 TEST(ValidateJobSpec, NegativeRadianceIntensityIrradianceEmission) {
   EXPECT_TRUE(HasFieldError(CheckPatched("scene.lights[3].rect.radiance[1]", "-1"),
                             "scene.lights[3].rect.radiance[1]", "negative (-1)"));

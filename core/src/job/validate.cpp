@@ -45,6 +45,16 @@ bool AllFinite(const Doubles& values) {
   return true;
 }
 
+// The most a light may emit, in any unit (radiance, intensity, irradiance, a map's scale): the
+// volume stores 32-bit floats (largest 3.4e38), and projection, distances and bounces multiply.
+// Physical skies and suns stay below 1e10.
+constexpr double kMaxEmitted = 1e30;
+
+std::string TooBright(double value) {
+  return Num(value) + " is more than 1e30, which the volume's 32-bit floats cannot hold once " +
+         "projected; use a smaller light unit";
+}
+
 // Largest |component|, for scale-free tests on vectors whose length could under- or overflow.
 double MaxAbs(const Vec3d& v) {
   return MaxComponent(Abs(v));
@@ -141,12 +151,16 @@ class Validator {
     return Vec3d(f[0], f[1], f[2]);
   }
 
-  // Radiance, intensity, irradiance, emission, medium coefficients: each channel >= 0.
-  void NonNegativeRgb(const Doubles& f, const std::string& path, bool required) {
+  // Radiance, intensity, irradiance, emission, medium coefficients: each channel >= 0; what a
+  // light emits also at most kMaxEmitted.
+  void NonNegativeRgb(const Doubles& f, const std::string& path, bool required,
+                      bool emitted = false) {
     const std::optional<Vec3d> v = Vec3(f, path, required);
     if (!v) return;
-    for (int c = 0; c < 3; ++c)
+    for (int c = 0; c < 3; ++c) {
       if ((*v)[c] < 0) errors_.Add(Index(path, c), "negative (" + Num((*v)[c]) + ")");
+      if (emitted && (*v)[c] > kMaxEmitted) errors_.Add(Index(path, c), TooBright((*v)[c]));
+    }
   }
 
   // A direction or normal: non-zero. Returns it when valid.
@@ -209,7 +223,7 @@ class Validator {
             errors_.Add(Index(path + ".albedo", c), Num(a) + " is outside [0, 1)");
         }
       }
-      NonNegativeRgb(m.emission(), path + ".emission", false);
+      NonNegativeRgb(m.emission(), path + ".emission", false, true);
     }
 
     int64_t inlineTriangles = 0;
@@ -352,7 +366,7 @@ class Validator {
       case v1::Light::kPoint: {
         const std::string p = path + ".point";
         Vec3(light.point().position(), p + ".position", true);
-        NonNegativeRgb(light.point().intensity(), p + ".intensity", true);
+        NonNegativeRgb(light.point().intensity(), p + ".intensity", true, true);
         return;
       }
       case v1::Light::kSpot: {
@@ -360,7 +374,7 @@ class Validator {
         const std::string p = path + ".spot";
         Vec3(spot.position(), p + ".position", true);
         Direction(spot.direction(), p + ".direction");
-        NonNegativeRgb(spot.intensity(), p + ".intensity", true);
+        NonNegativeRgb(spot.intensity(), p + ".intensity", true, true);
         const double inner = spot.inner_angle_deg(), outer = spot.outer_angle_deg();
         if (!std::isfinite(inner) || !std::isfinite(outer)) return;
         if (!(inner >= 0 && inner <= 180))
@@ -377,7 +391,7 @@ class Validator {
         const v1::DirectionalLight& d = light.directional();
         const std::string p = path + ".directional";
         Direction(d.direction(), p + ".direction");
-        NonNegativeRgb(d.irradiance(), p + ".irradiance", true);
+        NonNegativeRgb(d.irradiance(), p + ".irradiance", true, true);
         const double a = d.angular_diameter_deg();
         if (std::isfinite(a) && !(a >= 0 && a < 180))
           errors_.Add(p + ".angularDiameterDeg", "must be in [0, 180) (got " + Num(a) + ")");
@@ -389,7 +403,7 @@ class Validator {
         Vec3(rect.corner(), p + ".corner", true);
         const std::optional<Vec3d> e1 = Direction(rect.edge1(), p + ".edge1");
         const std::optional<Vec3d> e2 = Direction(rect.edge2(), p + ".edge2");
-        NonNegativeRgb(rect.radiance(), p + ".radiance", true);
+        NonNegativeRgb(rect.radiance(), p + ".radiance", true, true);
         if (e1 && e2) {
           const Vec3d a = Normalize(*e1 / MaxAbs(*e1)), b = Normalize(*e2 / MaxAbs(*e2));
           const double area = Length(Cross(*e1, *e2));
@@ -409,7 +423,7 @@ class Validator {
         Vec3(disk.center(), p + ".center", true);
         Direction(disk.normal(), p + ".normal");
         Radius(disk.radius(), p + ".radius");
-        NonNegativeRgb(disk.radiance(), p + ".radiance", true);
+        NonNegativeRgb(disk.radiance(), p + ".radiance", true, true);
         return;
       }
       case v1::Light::kSphere: {
@@ -417,7 +431,7 @@ class Validator {
         const std::string p = path + ".sphere";
         Vec3(sphere.center(), p + ".center", true);
         Radius(sphere.radius(), p + ".radius");
-        NonNegativeRgb(sphere.radiance(), p + ".radiance", true);
+        NonNegativeRgb(sphere.radiance(), p + ".radiance", true, true);
         return;
       }
     }
@@ -429,7 +443,7 @@ class Validator {
         errors_.Add("scene.environment", "expected one of uniform or map");
         return;
       case v1::Environment::kUniform:
-        NonNegativeRgb(env.uniform().radiance(), "scene.environment.uniform.radiance", true);
+        NonNegativeRgb(env.uniform().radiance(), "scene.environment.uniform.radiance", true, true);
         return;
       case v1::Environment::kMap: {
         const v1::EnvironmentMap& map = env.map();
@@ -442,6 +456,8 @@ class Validator {
         if (map.has_blob()) BlobDigest(map.blob(), p + ".blob");
         if (map.has_scale() && std::isfinite(map.scale()) && map.scale() < 0)
           errors_.Add(p + ".scale", "negative (" + Num(map.scale()) + ")");
+        if (map.has_scale() && std::isfinite(map.scale()) && map.scale() > kMaxEmitted)
+          errors_.Add(p + ".scale", TooBright(map.scale()));
         if (!v1::EnvironmentMap::Up_IsValid(map.up()))
           errors_.Add(p + ".up", "unknown value " + Num(int(map.up())) + " (expected Y or Z)");
         return;
