@@ -50,6 +50,19 @@ TEST(ValidateJobSpec, LightsBeyondWhatFloatsHoldAreRefused) {
   }
 }
 
+TEST(ValidateJobSpec, SpacingTooFineForOpenVdbIsRefused) {
+  // OpenVDB's transform needs a voxel volume of 3e-15: 1e-5 on every axis baked, then failed to
+  // write. One fine axis is fine.
+  auto grid = [](const std::string& spacing) {
+    return Patched(Patched(Example(), "grid", R"({"min": [0, 0, 0], "max": [1e-4, 1e-4, 1e-4]})"),
+                   "grid.spacing", spacing);
+  };
+  EXPECT_TRUE(HasFieldError(Check(grid("1e-5")), "grid",
+                            "probe spacing (1e-05, 1e-05, 1e-05) is too fine for an OpenVDB grid"));
+  EXPECT_TRUE(Check(grid("1.5e-5")).ok()) << Check(grid("1.5e-5"));
+  EXPECT_TRUE(Check(grid("[1e-5, 1, 1]")).ok()) << Check(grid("[1e-5, 1, 1]"));
+}
+
 TEST(ValidateJobSpec, NegativeRadianceIntensityIrradianceEmission) {
   EXPECT_TRUE(HasFieldError(CheckPatched("scene.lights[3].rect.radiance[1]", "-1"),
                             "scene.lights[3].rect.radiance[1]", "negative (-1)"));

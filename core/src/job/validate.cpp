@@ -71,6 +71,7 @@ class Validator {
       errors_.Add("grid", "missing");
     } else {
       Grid(job.grid());
+      if (errors_.ok()) VoxelVolume(ResolveGrid(job.grid()));
     }
     Settings(job.settings());
     return errors_.ToStatus();
@@ -536,6 +537,19 @@ class Validator {
       }
     } else if (std::isfinite(distance) && distance < 0) {
       errors_.Add("grid.surfaceDistance", "negative (" + Num(distance) + ")");
+    }
+  }
+
+  // OpenVDB refuses a transform whose voxel volume, the product of the three spacings, is below
+  // 3e-15 (ScaleMap's 3 x Tolerance<double>): a spacing of 1e-5 on every axis baked in full, then
+  // failed to write.
+  void VoxelVolume(const ProbeGrid& g) {
+    const double volume = g.spacing.x * g.spacing.y * g.spacing.z;
+    if (!(volume >= 3e-15)) {
+      errors_.Add("grid", "probe spacing (" + Num(g.spacing.x) + ", " + Num(g.spacing.y) + ", " +
+                              Num(g.spacing.z) +
+                              ") is too fine for an OpenVDB grid, whose voxel volume (the "
+                              "product of the three spacings) must be at least 3e-15");
     }
   }
 
