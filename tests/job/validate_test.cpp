@@ -61,6 +61,11 @@ TEST(ValidateJobSpec, SpacingTooFineForOpenVdbIsRefused) {
                             "probe spacing (1e-05, 1e-05, 1e-05) is too fine for an OpenVDB grid"));
   EXPECT_TRUE(Check(grid("1.5e-5")).ok()) << Check(grid("1.5e-5"));
   EXPECT_TRUE(Check(grid("[1e-5, 1, 1]")).ok()) << Check(grid("[1e-5, 1, 1]"));
+  // A spacing that overflows (max - min past the largest double) is named here, not by the writer.
+  EXPECT_TRUE(HasFieldError(
+      Check(Patched(Example(), "grid", R"({"min": [-1.7e308, 0, 0], "max": [1.7e308, 1, 1],
+                                           "counts": [2, 2, 2]})")),
+      "grid", "probe spacing (inf, 1, 1) overflows"));
 }
 
 TEST(ValidateJobSpec, NegativeRadianceIntensityIrradianceEmission) {

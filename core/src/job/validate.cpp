@@ -545,7 +545,10 @@ class Validator {
   // failed to write.
   void VoxelVolume(const ProbeGrid& g) {
     const double volume = g.spacing.x * g.spacing.y * g.spacing.z;
-    if (!(volume >= 3e-15)) {
+    if (!IsFinite(g.spacing) || !std::isfinite(volume)) {
+      errors_.Add("grid", "probe spacing (" + Num(g.spacing.x) + ", " + Num(g.spacing.y) + ", " +
+                              Num(g.spacing.z) + ") overflows: max - min is too large");
+    } else if (!(volume >= 3e-15)) {
       errors_.Add("grid", "probe spacing (" + Num(g.spacing.x) + ", " + Num(g.spacing.y) + ", " +
                               Num(g.spacing.z) +
                               ") is too fine for an OpenVDB grid, whose voxel volume (the "
