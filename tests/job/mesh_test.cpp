@@ -122,18 +122,18 @@ void ExpectPlyMesh(const absl::StatusOr<BakeJob>& built) {
                                 2);
 }
 
-TEST(MeshImport, PlyAscii) {
-  TempDir dir;
+// The PLY tests' mesh as an ASCII file with line ends `eol`, and as a little-endian binary one.
+std::string PlyAsciiFile(const std::string& eol = "\n") {
   std::string ply = PlyHeader("ascii");
+  for (size_t at = ply.find('\n'); eol != "\n" && at != std::string::npos;
+       at = ply.find('\n', at + eol.size()))
+    ply.replace(at, 1, eol);
   for (const auto& v : kPlyVertices)
-    ply += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\n";
-  ply += "4 0 1 2 3\n3 4 1 2\n";
-  dir.Write("m.ply", ply);
-  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]"));
+    ply += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + eol;
+  return ply + "4 0 1 2 3" + eol + "3 4 1 2" + eol;
 }
 
-TEST(MeshImport, PlyBinaryLittleEndian) {
-  TempDir dir;
+std::string PlyBinaryFile() {
   std::string ply = PlyHeader("binary_little_endian");
   auto put = [&ply](const void* p, size_t n) { ply.append(static_cast<const char*>(p), n); };
   for (const auto& v : kPlyVertices) put(v, sizeof v);
@@ -143,8 +143,21 @@ TEST(MeshImport, PlyBinaryLittleEndian) {
   put(quad, sizeof quad);
   put(&three, 1);
   put(tri, sizeof tri);
-  dir.Write("m.ply", ply);
-  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]"));
+  return ply;
+}
+
+constexpr char kUp5[] = "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]";
+
+TEST(MeshImport, PlyAscii) {
+  TempDir dir;
+  dir.Write("m.ply", PlyAsciiFile());
+  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", kUp5));
+}
+
+TEST(MeshImport, PlyBinaryLittleEndian) {
+  TempDir dir;
+  dir.Write("m.ply", PlyBinaryFile());
+  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", kUp5));
 }
 
 // glTF 2.0 pieces: one mesh (a right triangle (0,0,0) (1,0,0) (0,1,0), uint16 indices) placed by
@@ -295,36 +308,19 @@ TEST(MeshImport, PlyHeadersAreCheckedBeforeAssimpReadsThem) {
         << c.message;
   }
   // CRLF line ends are fine.
-  std::string crlf = PlyHeader("ascii");
-  for (size_t at = crlf.find('\n'); at != std::string::npos; at = crlf.find('\n', at + 2))
-    crlf.replace(at, 1, "\r\n");
-  for (const auto& v : kPlyVertices)
-    crlf += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\r\n";
-  crlf += "4 0 1 2 3\r\n3 4 1 2\r\n";
-  dir.Write("crlf.ply", crlf);
-  ExpectPlyMesh(BuildMeshJob(dir, "crlf.ply", "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]"));
+  dir.Write("crlf.ply", PlyAsciiFile("\r\n"));
+  ExpectPlyMesh(BuildMeshJob(dir, "crlf.ply", kUp5));
 }
 
 TEST(MeshImport, PlyBodiesMustHoldWhatTheHeaderDeclares) {
   // Fuzzed files whose declared sizes assimp trusted: it ran for ever, or asserted and aborted.
   TempDir dir;
-  std::string binary = PlyHeader("binary_little_endian");
-  auto put = [&binary](const void* p, size_t n) { binary.append(static_cast<const char*>(p), n); };
-  for (const auto& v : kPlyVertices) put(v, sizeof v);
-  const uint8_t four = 4, three = 3;
-  const int32_t quad[4] = {0, 1, 2, 3}, tri[3] = {4, 1, 2};
-  put(&four, 1);
-  put(quad, sizeof quad);
-  put(&three, 1);
-  put(tri, sizeof tri);
+  const std::string binary = PlyBinaryFile();
   auto replaced = [](std::string text, const std::string& from, const std::string& to) {
     text.replace(text.find(from), from.size(), to);
     return text;
   };
-  std::string ascii = PlyHeader("ascii");
-  for (const auto& v : kPlyVertices)
-    ascii += std::to_string(v[0]) + " " + std::to_string(v[1]) + " " + std::to_string(v[2]) + "\n";
-  ascii += "4 0 1 2 3\n3 4 1 2\n";
+  const std::string ascii = PlyAsciiFile();
   std::string garbageCount = binary;
   garbageCount[PlyHeader("binary_little_endian").size() + sizeof kPlyVertices] = char(200);
   const struct {
@@ -361,9 +357,9 @@ TEST(MeshImport, PlyBodiesMustHoldWhatTheHeaderDeclares) {
                             "\"m.ply\" has a face without vertices"));
   // The complete files, and tabs between header words, are fine.
   dir.Write("m.ply", replaced(binary, "element vertex 5", "element\tvertex\t5"));
-  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]"));
+  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", kUp5));
   dir.Write("m.ply", ascii);
-  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", "[1,0,0,0, 0,1,0,0, 0,0,1,5, 0,0,0,1]"));
+  ExpectPlyMesh(BuildMeshJob(dir, "m.ply", kUp5));
 }
 
 TEST(MeshImport, GlbChunksMustFitInTheFile) {
