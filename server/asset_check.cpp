@@ -9,7 +9,6 @@
 
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <random>
 
 #include "absl/strings/numbers.h"
@@ -222,17 +221,16 @@ int RunLocalAssetCheckChild(const std::string& jobPath, const JobLimits& limits)
 
 int RunAssetCheckChild(const std::filesystem::path& specFile, const std::filesystem::path& dataDir,
                        int64_t maxBlobBytes, const JobLimits& limits) {
-  const auto report = ReportAssetCheck;
   absl::StatusOr<std::string> bytes = ReadWholeFile(specFile);
-  if (!bytes.ok()) return report(absl::InternalError(bytes.status().message()));
+  if (!bytes.ok()) return ReportAssetCheck(absl::InternalError(bytes.status().message()));
   v1::JobSpec spec;
   if (!spec.ParseFromString(*bytes))
-    return report(absl::InternalError("asset check: unreadable spec file"));
+    return ReportAssetCheck(absl::InternalError("asset check: unreadable spec file"));
   absl::StatusOr<std::unique_ptr<BlobStore>> blobs = BlobStore::Open(dataDir, maxBlobBytes);
-  if (!blobs.ok()) return report(blobs.status());
+  if (!blobs.ok()) return ReportAssetCheck(blobs.status());
   const BlobAssetSource store(blobs->get(), limits.maxAssetBytes);
   const AnnouncingAssetSource assets(store);
-  return report(BuildBakeJob(spec, assets, limits).status());
+  return ReportAssetCheck(BuildBakeJob(spec, assets, limits).status());
 }
 
 }  // namespace probebake::server

@@ -188,15 +188,13 @@ absl::Status BuildEnvironment(const v1::Environment& spec, const AssetSource& as
   c->clear_file();
 
   map.scale = m.has_scale() ? m.scale() : 1;
-  // As validate.cpp's limit on what a light emits: the volume's floats must hold the projection.
   const float brightest =
       map.rgb.empty() ? 0.0f : *std::max_element(map.rgb.begin(), map.rgb.end());
-  if (double(brightest) * map.scale > 1e30) {
+  if (double(brightest) * map.scale > kMaxEmitted) {
     return FieldError(path + (m.has_scale() ? ".scale" : (m.file().empty() ? ".blob" : ".file")),
                       "the brightest pixel (" + Num(brightest) + ") times the scale (" +
-                          Num(map.scale) +
-                          ") is more than 1e30, which the volume's 32-bit floats cannot hold "
-                          "once projected; use a smaller light unit");
+                          Num(map.scale) + ") is more than 1e30, " +
+                          job_internal::kBeyondVolumeFloats);
   }
   map.worldFromMap = EnvironmentWorldFromMap(m.up(), m.rotation_deg());
   map.digest = Sha256Hex(bytes);

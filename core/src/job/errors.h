@@ -26,6 +26,10 @@ class ErrorList {
   size_t dropped_ = 0;
 };
 
+// Why a light above kMaxEmitted (limits.h) is refused, after "<value> is more than 1e30, ".
+inline constexpr char kBeyondVolumeFloats[] =
+    "which the volume's 32-bit floats cannot hold once projected; use a smaller light unit";
+
 // `status` with "<prefix>: " put before every line of its message; the code is kept.
 absl::Status PrefixLines(const absl::Status& status, std::string_view prefix);
 

@@ -265,7 +265,7 @@ std::string GlbProblem(std::string_view bytes) {
     }
     at += 8 + size;
   }
-  return "";
+  return GltfNodeProblem(bytes.substr(20, u32(12)));  // the JSON chunk, which fits
 }
 
 std::string GltfNodeProblem(std::string_view json) {
@@ -295,23 +295,30 @@ std::string GltfNodeProblem(std::string_view json) {
     }
   }
   // With one parent each, a node's depth is its chain of parents; a chain longer than the node
-  // count is a cycle.
+  // count is a cycle. Depths found are kept, so each node is walked once.
   constexpr int kMaxDepth = 1000;
   std::vector<int> depth(size_t(count), -1);
+  std::vector<int> chain;
   for (int i = 0; i < count; ++i) {
-    int d = 0;
-    for (int n = i; n >= 0 && depth[size_t(n)] < 0; n = parent[size_t(n)]) {
-      if (++d > count) return "its nodes form a cycle";
-    }
-    // Fill the chain's depths from the top down (the top's known depth, or 0 at a root).
-    std::vector<int> chain;
+    chain.clear();
     int n = i;
-    for (; n >= 0 && depth[size_t(n)] < 0; n = parent[size_t(n)]) chain.push_back(n);
-    int base = n >= 0 ? depth[size_t(n)] + 1 : 0;
-    for (auto it = chain.rbegin(); it != chain.rend(); ++it) depth[size_t(*it)] = base++;
+    for (; n >= 0 && depth[size_t(n)] < 0; n = parent[size_t(n)]) {
+      chain.push_back(n);
+      if (int(chain.size()) > count) return "its nodes form a cycle";
+    }
+    // Depths from the top of the chain down: its known depth, or 0 at a root.
+    int next = n >= 0 ? depth[size_t(n)] + 1 : 0;
+    for (auto it = chain.rbegin(); it != chain.rend(); ++it) depth[size_t(*it)] = next++;
     if (depth[size_t(i)] > kMaxDepth)
       return "its nodes nest deeper than " + std::to_string(kMaxDepth) + " levels";
   }
+  return "";
+}
+
+std::string MeshFileProblem(std::string_view bytes, const std::string& format) {
+  if (format == "ply") return PlyProblem(bytes);
+  if (format == "glb") return GlbProblem(bytes);
+  if (format == "gltf") return GltfNodeProblem(bytes);
   return "";
 }
 

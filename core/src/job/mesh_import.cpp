@@ -88,21 +88,8 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
   if (bytes.empty())
     return FieldError(fieldPath, "cannot import " + what + " as " + format + ": the file is empty");
 
-  if (format == "ply" || format == "glb" || format == "gltf") {
-    std::string problem = format == "ply"   ? PlyProblem(bytes)
-                          : format == "glb" ? GlbProblem(bytes)
-                                            : GltfNodeProblem(bytes);
-    if (problem.empty() && format == "glb" &&
-        bytes.substr(4, 4) == std::string_view("\2\0\0\0", 4)) {
-      // The JSON chunk (GlbProblem checked that it fits).
-      const auto* p = reinterpret_cast<const unsigned char*>(bytes.data());
-      const size_t size =
-          size_t(p[12]) | size_t(p[13]) << 8 | size_t(p[14]) << 16 | size_t(p[15]) << 24;
-      problem = GltfNodeProblem(bytes.substr(20, size));
-    }
-    if (!problem.empty())
-      return FieldError(fieldPath, "cannot import " + what + " as " + format + ": " + problem);
-  }
+  if (const std::string problem = MeshFileProblem(bytes, format); !problem.empty())
+    return FieldError(fieldPath, "cannot import " + what + " as " + format + ": " + problem);
 
   if (!ClaimedByAnImporterOf(bytes, format)) {
     return FieldError(

@@ -45,14 +45,8 @@ bool AllFinite(const Doubles& values) {
   return true;
 }
 
-// The most a light may emit, in any unit (radiance, intensity, irradiance, a map's scale): the
-// volume stores 32-bit floats (largest 3.4e38), and projection, distances and bounces multiply.
-// Physical skies and suns stay below 1e10.
-constexpr double kMaxEmitted = 1e30;
-
 std::string TooBright(double value) {
-  return Num(value) + " is more than 1e30, which the volume's 32-bit floats cannot hold once " +
-         "projected; use a smaller light unit";
+  return Num(value) + " is more than 1e30, " + job_internal::kBeyondVolumeFloats;
 }
 
 // Largest |component|, for scale-free tests on vectors whose length could under- or overflow.

@@ -13,6 +13,11 @@ namespace probebake {
 // The highest SH order the baker supports (SPEC 2).
 inline constexpr int kMaxShOrder = 8;
 
+// The most a light may emit, in any unit (radiance, intensity, irradiance, emission, a map's
+// brightest pixel times its scale): the volume stores 32-bit floats (largest 3.4e38), and
+// projection, distances and bounces multiply. Physical skies and suns stay below 1e10.
+inline constexpr double kMaxEmitted = 1e30;
+
 struct JobLimits {
   // Probes in the grid (the product of the counts per axis), before placement. A probe costs
   // 12 (L+1)^2 bytes per SH grid plus bookkeeping: 4M probes at order 8 is ~4 GB of radiance.
