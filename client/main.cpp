@@ -16,6 +16,7 @@
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 
 #include <CLI/CLI.hpp>
 
@@ -142,11 +143,22 @@ int CheckOutput(const std::string& out) {
 // crashes or hangs the importer is reported with its field instead of taking the CLI with it.
 constexpr std::chrono::seconds kAssetCheckTimeout{600};
 
+// This executable's path for the child. Resolved rather than "/proc/self/exe" itself: under a
+// runner such as valgrind that link names the runner, which does not know `check-assets`. The
+// CLI lives for one command, so the file cannot have been replaced since it started; if the
+// link cannot be read, the link it is.
+std::string SelfExecutable() {
+  std::error_code error;
+  std::filesystem::path self = std::filesystem::read_symlink("/proc/self/exe", error);
+  if (error || !std::filesystem::is_regular_file(self, error)) return "/proc/self/exe";
+  return self.string();
+}
+
 int RunBake(const std::string& jobPath, const std::string& out, int threads, bool json) {
   if (absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
       spec.ok() && !ListFileReferences(*spec).empty()) {
     const absl::Status checked =
-        server::RunAssetCheck({"/proc/self/exe", "check-assets", jobPath}, kAssetCheckTimeout);
+        server::RunAssetCheck({SelfExecutable(), "check-assets", jobPath}, kAssetCheckTimeout);
     if (!checked.ok()) return Fail(checked, jobPath);
   }
   absl::StatusOr<BakeJob> job = LoadBakeJob(jobPath, JobLimits());
