@@ -7,6 +7,7 @@
 #include <cmath>
 #include <exception>
 
+#include <google/protobuf/util/message_differencer.h>
 #include <google/protobuf/util/time_util.h>
 
 #include "absl/strings/escaping.h"
@@ -230,7 +231,17 @@ absl::StatusOr<v1::BakeJob> JobManager::CreateJob(const v1::CreateBakeJobRequest
     if (requestId.empty()) return std::optional<v1::BakeJob>();
     PB_ASSIGN_OR_RETURN(std::optional<StoredJob> existing, store_->FindByRequestId(requestId));
     if (!existing) return std::optional<v1::BakeJob>();
-    return LoadLocked(existing->record.name(), false);
+    // An idempotency key names one request: reused for another job it is a client's mistake
+    // (a copied id, a script that fixes it), and answering with the first job would report a
+    // bake of something the client did not ask for.
+    const std::string& name = existing->record.name();
+    PB_ASSIGN_OR_RETURN(std::optional<v1::JobSpec> spec, store_->GetSpec(name));
+    if (!spec || !google::protobuf::util::MessageDifferencer::Equals(*spec, request.job()) ||
+        existing->record.skip_cache() != request.skip_cache())
+      return FieldError("requestId", absl::StrCat("\"", requestId, "\" was already used by ", name,
+                                                  " for a different request; a request id "
+                                                  "names one request, use a new one"));
+    return LoadLocked(name, false);
   };
   {
     std::lock_guard lock(mutex_);

@@ -218,9 +218,17 @@ TEST(Service, RequestIdIsIdempotent) {
   v1::BakeJob first = s.Create(SmallJob(4), "req-1");
   v1::BakeJob again = s.Create(SmallJob(4), "req-1");
   EXPECT_EQ(again.name(), first.name());
-  // Even with a different spec, the id names the first job.
-  v1::BakeJob other = s.Create(SmallJob(5), "req-1");
-  EXPECT_EQ(other.name(), first.name());
+  // The same id with another job, or the same job with another skip_cache, is refused with the
+  // field and the job that holds the id, and creates nothing.
+  const grpc::Status otherJob = CreateStatus(s, Request(SmallJob(5), "req-1"));
+  EXPECT_EQ(otherJob.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(otherJob.error_message().find("requestId: \"req-1\" was already used by " +
+                                          first.name() + " for a different request"),
+            std::string::npos)
+      << otherJob.error_message();
+  v1::CreateBakeJobRequest skip = Request(SmallJob(4), "req-1");
+  skip.set_skip_cache(true);
+  EXPECT_EQ(CreateStatus(s, skip).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   v1::ListBakeJobsResponse list;
   auto c = s.Context();
   ASSERT_TRUE(s.Jobs()->ListBakeJobs(c.get(), {}, &list).ok());
