@@ -201,6 +201,45 @@ TEST_F(Inspect, KnownValuesGiveKnownStatistics) {
   EXPECT_EQ(validity.mean[0], 43.0 / 45.0);
 }
 
+TEST_F(Inspect, NonFiniteValuesAreCountedAndLeftOutOfTheStatistics) {
+  // Radiance coefficient 0 = (p, p, p) at probe p, every probe active; probe 0 gets a NaN in one
+  // channel and probe 1 an infinity: both voxels are counted and left out of every channel.
+  TestVolumeSpec spec;
+  spec.inactiveEvery = 0;
+  ProbeVolume v = MakeTestVolume(spec);
+  const size_t probes = v.active.size();
+  for (size_t p = 0; p < probes; ++p)
+    for (int ch = 0; ch < 3; ++ch) v.radiance[0][3 * p + size_t(ch)] = float(p);
+  v.radiance[0][1] = std::numeric_limits<float>::quiet_NaN();
+  v.radiance[0][3 + 2] = std::numeric_limits<float>::infinity();
+  v.stdError[4] = -std::numeric_limits<float>::infinity();
+  const std::string path = dir_.File("nonfinite.vdb");
+  PB_ASSERT_OK(WriteProbeVolume(path, v, MakeTestMetadata()));
+  const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path);
+  ASSERT_TRUE(report.ok()) << report.status();
+  auto grid = [&](const std::string& name) {
+    return *std::find_if(report->grids.begin(), report->grids.end(),
+                         [&](const GridReport& g) { return g.name == name; });
+  };
+  const GridReport r0 = grid("radiance_sh_00");
+  EXPECT_EQ(r0.nonFinite, 2);
+  // Probes 2 .. n-1: mean (n + 1) / 2, exact in double for these few small integers.
+  const double n = double(probes);
+  for (int ch = 0; ch < 3; ++ch) {
+    EXPECT_EQ(r0.min[ch], 2) << ch;
+    EXPECT_EQ(r0.max[ch], n - 1) << ch;
+    EXPECT_EQ(r0.mean[ch], (n + 1) / 2) << ch;
+  }
+  EXPECT_EQ(grid("std_error").nonFinite, 1);
+  EXPECT_TRUE(std::isfinite(grid("std_error").mean[0]));
+  EXPECT_EQ(grid("radiance_sh_01").nonFinite, 0);
+  const std::string text = FormatVolumeReport(*report);
+  EXPECT_NE(text.find("NON-FINITE 2"), std::string::npos) << text;
+  EXPECT_NE(text.find("NON-FINITE 1"), std::string::npos) << text;
+  const std::string json = VolumeReportJson(*report);
+  EXPECT_NE(json.find("\"nonFinite\":2"), std::string::npos) << json;
+}
+
 TEST_F(Inspect, TextNamesProbesAndEveryGrid) {
   const absl::StatusOr<VolumeReport> report = InspectProbeVolume(path_);
   ASSERT_TRUE(report.ok()) << report.status();

@@ -470,13 +470,22 @@ void GatherStats(const GridT& grid, int channels, GridReport* report) {
   int64_t count = 0;
   for (auto it = grid.cbeginValueOn(); it; ++it) {
     const int64_t n = int64_t(it.getVoxelCount());
+    double values[3];
+    bool finite = true;
     for (int ch = 0; ch < channels; ++ch) {
-      double v;
       if constexpr (std::is_same_v<GridT, vdb::Vec3SGrid>) {
-        v = double((*it)[ch]);
+        values[ch] = double((*it)[ch]);
       } else {
-        v = double(*it);
+        values[ch] = double(*it);
       }
+      finite = finite && std::isfinite(values[ch]);
+    }
+    if (!finite) {
+      report->nonFinite += n;
+      continue;
+    }
+    for (int ch = 0; ch < channels; ++ch) {
+      const double v = values[ch];
       report->min[ch] = std::min(report->min[ch], v);
       report->max[ch] = std::max(report->max[ch], v);
       sum[ch] += v * double(n);
@@ -609,6 +618,9 @@ std::string FormatVolumeReport(const VolumeReport& report) {
     if (g.channels > 0) {
       out += "  min " + channels(g.min) + "  max " + channels(g.max) + "  mean " + channels(g.mean);
     }
+    if (g.nonFinite > 0) {
+      out += "  NON-FINITE " + std::to_string(g.nonFinite) + " (left out of min, max, mean)";
+    }
     out += "\n";
   }
   return out;
@@ -703,6 +715,7 @@ std::string VolumeReportJson(const VolumeReport& report) {
     grid["min"] = numbers(g.min, g.channels);
     grid["max"] = numbers(g.max, g.channels);
     grid["mean"] = numbers(g.mean, g.channels);
+    grid["nonFinite"] = IntegerValue(g.nonFinite);
   }
   return ToJson(root);
 }

@@ -26,11 +26,15 @@ struct GridReport {
   int bboxMin[3] = {0, 0, 0};
   int bboxMax[3] = {0, 0, 0};
   // Per channel (1 for float grids, 3 for vec3s grids, 0 for other value types) over the active
-  // voxels: minimum, maximum and mean, accumulated in double; 0 without active voxels.
+  // voxels whose every channel is finite: minimum, maximum and mean, accumulated in double; 0
+  // when there are none.
   int channels = 0;
   double min[3] = {0, 0, 0};
   double max[3] = {0, 0, 0};
   double mean[3] = {0, 0, 0};
+  // Active voxels with a NaN or infinite channel (float and vec3s grids), left out of the above:
+  // a probebake volume has none, so any is a sign of a broken bake or file.
+  int64_t nonFinite = 0;
 };
 
 struct VolumeReport {
@@ -53,13 +57,13 @@ std::string FormatVolumeReport(const VolumeReport& report);
 
 // One JSON object: {"path", "fileBytes", "probes", "invalidProbes", "metadata": {name: value},
 // "grids": [{"name", "type", "valueType", "activeVoxels", "bboxMin", "bboxMax", "min", "max",
-// "mean"}]} (bboxMin and bboxMax null for a grid without active voxels). Printed by protobuf's
-// JSON mapping from a google.protobuf.Struct: compact, every object's keys in ascending order,
-// the same report always giving the same text. Metadata values are JSON numbers for int/float
-// types, booleans for bool, arrays for vectors, strings otherwise; string values that hold a JSON
-// object or array (settings, stats) are embedded as JSON (re-printed the same way: keys sorted,
-// numbers as doubles). Numbers are doubles: an integer of magnitude 2^53 or more (an int64 seed)
-// is a string of its exact decimal digits instead, as in protobuf's JSON mapping of int64;
+// "mean", "nonFinite"}]} (bboxMin and bboxMax null for a grid without active voxels). Printed by
+// protobuf's JSON mapping from a google.protobuf.Struct: compact, every object's keys in ascending
+// order, the same report always giving the same text. Metadata values are JSON numbers for
+// int/float types, booleans for bool, arrays for vectors, strings otherwise; string values that
+// hold a JSON object or array (settings, stats) are embedded as JSON (re-printed the same way: keys
+// sorted, numbers as doubles). Numbers are doubles: an integer of magnitude 2^53 or more (an int64
+// seed) is a string of its exact decimal digits instead, as in protobuf's JSON mapping of int64;
 // non-finite float metadata is a string ("nan", "inf"), non-finite statistics are null.
 // Strings are UTF-8: bytes of the path or metadata that are not well-formed UTF-8 become U+FFFD.
 // Statistics of 1-channel grids are still arrays (of one number).
