@@ -391,6 +391,58 @@ TEST(Extremes, LargeTiltedFloorAtTheLocalOriginHasNoAcne) {
   }
 }
 
+TEST(Extremes, AProbeOnAFloorSeesItsFrontSide) {
+  // The white tilted floor under a uniform sky, with the probe on it: exactly on its plane, or
+  // behind it by 2^-24 s, less than the tracer resolves (2^-22 of the floor's coordinates,
+  // SurfaceResolution), so moved to its front side in both cases. It must bake as just above it
+  // (radiance 1 from above, 0.5 from below), not see the sky through the floor (which gave L00 its
+  // full-sphere value and no gradient). The probe then sits a ray offset, at most 2^-17 s, above
+  // the floor: the sky shows below its horizon within 2 pi (2^-17 s / s) sr, each direction off by
+  // 0.5 * 1.1 as in the test above.
+  const Vec3d n = TiltedNormal();
+  const Framed f = Framed::FromZ(n);
+  for (double s : {1.0, 1e3}) {
+    // At the floor's centre (the local origin) and at a point of it away from there.
+    for (const Vec3d& on : {Vec3d{}, f.s * (0.37 * s) - f.t * (0.21 * s)}) {
+      for (double behind : {0.0, 0x1p-24 * s}) {
+        BakeJob job = MakeJob(2, 4096, on - n * behind);
+        job.scene.environment = {Environment::Kind::kUniform, {1, 1, 1}, nullptr};
+        AddTiltedSquare(&job.scene, s, AddMaterial(&job.scene, {0.5, 0.5, 0.5}), true);
+        const std::vector<double> up = CapProjection(2, n, 0), down = CapProjection(2, -n, 0);
+        std::vector<double> expected(up.size());
+        for (size_t c = 0; c < up.size(); ++c) expected[c] = up[c] + 0.5 * down[c];
+        const ProbeResult r = Probe(BakeOrDie(job), 0);
+        EXPECT_EQ(r.validity, 1.0f);
+        ExpectProjection(r, expected, {1, 1, 1},
+                         "probe on a tilted white floor, half-size " + std::to_string(s) +
+                             ", behind it by " + std::to_string(behind) + ", " +
+                             std::to_string(Length(on)) + " from its centre",
+                         2 * kPi * 0x1p-17 * 0.5 * 1.1);
+      }
+    }
+  }
+}
+
+TEST(Extremes, AProbeInACornerSeesOnlyTheOpenOctant) {
+  // Three black quads meeting at the origin (a floor and two walls, fronts facing +x, +y, +z),
+  // uniform sky, the probe at their common corner: it sees the sky over the octant x, y, z > 0
+  // alone, L00 = (4 pi / 8) Y00. Moved off each surface in turn, it sits a ray offset (at most
+  // 2^-17 s) from each; the sky then shows past the quads' far edges only within about
+  // 3 * 2 pi * 2^-17 sr, each direction off by Y00.
+  const double s = 10;
+  BakeJob job = MakeJob(0, 4096, {0, 0, 0});
+  job.scene.environment = {Environment::Kind::kUniform, {1, 1, 1}, nullptr};
+  const uint32_t black = AddMaterial(&job.scene, {0, 0, 0});
+  AddQuad(&job.scene, {0, 0, 0}, {s, 0, 0}, {s, s, 0}, {0, s, 0}, black);  // floor, +z
+  AddQuad(&job.scene, {0, 0, 0}, {0, s, 0}, {0, s, s}, {0, 0, s}, black);  // wall, +x
+  AddQuad(&job.scene, {0, 0, 0}, {0, 0, s}, {s, 0, s}, {s, 0, 0}, black);  // wall, +y
+  const double y00 = 0.5 / std::sqrt(kPi);
+  const ProbeResult r = Probe(BakeOrDie(job), 0);
+  EXPECT_EQ(r.validity, 1.0f);
+  ExpectProjection(r, {4 * kPi / 8 * y00}, {1, 1, 1}, "probe in a corner",
+                   3 * 2 * kPi * 0x1p-17 * y00);
+}
+
 TEST(Extremes, ShadowRaysReachALargeTiltedLightAtTheLocalOrigin) {
   // A large one-sided emitting square 0.5 above the probe, facing it, and nothing else: the
   // upper hemisphere (about the square's normal) has radiance 1. Shadow rays aimed at points on it

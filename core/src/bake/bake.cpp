@@ -213,13 +213,16 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
 
   // Placement and validity: which probes are inside geometry, which are near a surface.
   std::atomic<int64_t> prepassRays{0};
+  std::atomic<int64_t> onSurfaces{0};
   tbb::parallel_for(
       tbb::blocked_range<int64_t>(0, probeCount, 64),
       [&](const tbb::blocked_range<int64_t>& range) {
         int64_t rays = 0;
         for (int64_t probe = range.begin(); probe != range.end(); ++probe) {
           const ProbeSite site = siteOf(probe);
-          const Vec3d p = site.local;
+          int moves;
+          const Vec3d p = TraceOrigin(*tracer, site.local, &moves);
+          if (moves > 0) onSurfaces.fetch_add(1, std::memory_order_relaxed);
           const Vec3f origin(p);
           SobolSampler sampler(settings.seed, Hash(site.key, kValidityStream));
           int backfaces = 0;
@@ -266,6 +269,11 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   log->info("placement: {} of {} probes active ({} resumed), {} invalid, {:.3f} s", activeCount,
             probeCount, resumed, std::count(volume.validity.begin(), volume.validity.end(), 0.0f),
             Seconds(start));
+  if (const int64_t n = onSurfaces.load(); n > 0)
+    log->info(
+        "{} grid points lie on a mesh surface; each is traced from just off it, on its front "
+        "side",
+        n);
 
   SharedCounters counters;
   counters.rays.fetch_add(prepassRays.load(), std::memory_order_relaxed);
@@ -286,7 +294,8 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
           if (isCancelled()) return;
           const int64_t probe = todo[t];
           const ProbeSite site = siteOf(probe);
-          const Vec3d p = site.local;
+          int moves;
+          const Vec3d p = TraceOrigin(*tracer, site.local, &moves);
           ProbeEstimate estimate(coeffs, maxBatches);
 
           // Delta lights project exactly (SPEC 3): c_i += (I / d^2) V Y_i(w), once per probe.

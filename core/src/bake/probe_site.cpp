@@ -5,6 +5,7 @@
 #include <cmath>
 
 #include "probebake/sampling/hash.h"
+#include "ray_offset.h"
 #include "tracer_scene.h"
 
 namespace probebake {
@@ -36,6 +37,20 @@ ProbeSite ProbeSites::At(const Vec3d& position) const {
   site.key = Hash(std::bit_cast<uint64_t>(site.local.x), std::bit_cast<uint64_t>(site.local.y),
                   std::bit_cast<uint64_t>(site.local.z));
   return site;
+}
+
+Vec3d TraceOrigin(const TracerScene& tracer, const Vec3d& local, int* moves) {
+  // Three surfaces at most meet at a grid point that matters (a room's corner); more would be a
+  // degenerate vertex, left where the third move puts it.
+  constexpr int kMaxMoves = 3;
+  Vec3d p = local;
+  *moves = 0;
+  SurfaceHit on;
+  while (*moves < kMaxMoves && tracer.MeshSurfaceAt(p, &on)) {
+    p = Vec3d(OffsetRayOrigin(on.p, on.ng, on.vertexScale));
+    ++*moves;
+  }
+  return p;
 }
 
 }  // namespace probebake

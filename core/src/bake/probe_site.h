@@ -27,7 +27,7 @@
 namespace probebake {
 
 struct ProbeSite {
-  Vec3d local;       // the snapped local position: where the probe is traced from
+  Vec3d local;       // the snapped local position (traced from there, unless on a surface)
   uint64_t key = 0;  // hash of `local`'s bits: the key of the probe's random streams
 };
 
@@ -43,5 +43,16 @@ class ProbeSites {
   Vec3d offset_;
   int minExponent_;  // ilogb(extent) - 30
 };
+
+class TracerScene;
+
+// Where a probe at local position `local` is traced from: `local` itself, unless it lies on a mesh
+// surface (TracerScene::MeshSurfaceAt: closer than the tracer resolves). Such a probe, a grid
+// point on a floor or wall being the common case, would start rays on either side of it and mix
+// the two (a probe on a room's floor saw the outside below it: half its L0, its gradient
+// reversed). It is moved off the surface to its front side, the side validity counts as outside,
+// by the offset of a ray leaving that surface; at an edge or corner off each surface in turn.
+// Counts the moves in `*moves`. A function of `local` and the scene alone, like the site.
+Vec3d TraceOrigin(const TracerScene& tracer, const Vec3d& local, int* moves);
 
 }  // namespace probebake

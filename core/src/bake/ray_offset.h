@@ -30,12 +30,26 @@ namespace probebake {
 // Moves p off its surface to the side `n` points to (n: unit geometric normal, flipped by the
 // caller toward the side the new ray leaves on). `vertexScale`: largest magnitude of the
 // surface's float vertex coordinates (SurfaceHit::vertexScale).
-inline Vec3f OffsetRayOrigin(const Vec3d& p, const Vec3d& n, double vertexScale) {
+// How far OffsetRayOrigin moves p, in scene units.
+inline double RayOffsetDistance(const Vec3d& p, double vertexScale) {
   constexpr double kRelative = 0x1p-18;
   // Keeps the offset positive for geometry at the origin itself (a vertex scale of 0).
   constexpr double kAbsolute = 0x1p-100;
   const double scale = std::max(vertexScale, MaxComponent(Abs(p)));
-  return Vec3f(p + n * (kRelative * scale + kAbsolute));
+  return kRelative * scale + kAbsolute;
+}
+
+inline Vec3f OffsetRayOrigin(const Vec3d& p, const Vec3d& n, double vertexScale) {
+  return Vec3f(p + n * RayOffsetDistance(p, vertexScale));
+}
+
+// Below this distance, in scene units, a point cannot be told apart from the surface near q (a
+// triangle whose float vertex coordinates reach `vertexScale`): 2^-22 of the coordinates'
+// magnitude, 2 to 4 float ULPs, the size of the rounding of a ray origin to float plus that of
+// Embree's intersection test. Rays leaving such a point start on either side of the surface. A
+// ray offset (above) is 16 times as far.
+inline double SurfaceResolution(const Vec3d& q, double vertexScale) {
+  return 0x1p-22 * std::max(vertexScale, MaxComponent(Abs(q)));
 }
 
 // The largest float rounding error, in scene units, of a coordinate of magnitude `maxAbs` after a

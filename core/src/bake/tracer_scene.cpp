@@ -7,11 +7,13 @@
 #include <limits>
 #include <mutex>
 #include <string>
+#include <tuple>
 #include <variant>
 
 #include "probebake/base/check.h"
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
+#include "ray_offset.h"
 
 namespace probebake {
 namespace {
@@ -343,6 +345,61 @@ bool TracerScene::MeshWithin(const Vec3d& p, double radius) const {
     return false;
   };
   rtcPointQuery(impl_->scene, &query, &context, callback, &state);
+  return state.found;
+}
+
+bool TracerScene::MeshSurfaceAt(const Vec3d& p, SurfaceHit* on) const {
+  struct State {
+    const TracerScene* scene;
+    const std::vector<uint32_t>* meshOfGeom;
+    Vec3d p;
+    bool found = false;
+    double distance = 0;
+    unsigned geomID = 0, primID = 0;
+    SurfaceHit best;
+  } state{this, &impl_->meshOfGeom, p};
+  // Every triangle's offset is at most that of the largest coordinates in the scene.
+  const double maxAbs = std::max(
+      {MaxComponent(Abs(p)), MaxComponent(Abs(boundsMin_)), MaxComponent(Abs(boundsMax_))});
+  RTCPointQuery query;
+  query.x = float(p.x);
+  query.y = float(p.y);
+  query.z = float(p.z);
+  query.radius = float(2 * SurfaceResolution(p, maxAbs));
+  query.time = 0;
+  RTCPointQueryContext context;
+  rtcInitPointQueryContext(&context);
+  auto callback = [](RTCPointQueryFunctionArguments* args) -> bool {
+    auto* s = static_cast<State*>(args->userPtr);
+    if (args->geomID >= s->meshOfGeom->size()) return false;
+    const uint32_t mesh = (*s->meshOfGeom)[args->geomID];
+    if (mesh == UINT32_MAX) return false;
+    const float* v = s->scene->meshVerts_[mesh];
+    const uint32_t* idx = s->scene->meshIndices_[mesh] + 3 * args->primID;
+    const Vec3d a = Vertex(v, idx[0]), b = Vertex(v, idx[1]), c = Vertex(v, idx[2]);
+    const double vertexScale =
+        std::max({MaxComponent(Abs(a)), MaxComponent(Abs(b)), MaxComponent(Abs(c))});
+    const Vec3d q = ClosestPointOnTriangle(s->p, a, b, c);
+    const double distance = Length(q - s->p);
+    if (!(distance < SurfaceResolution(q, vertexScale))) return false;
+    if (s->found && std::tie(distance, args->geomID, args->primID) >=
+                        std::tie(s->distance, s->geomID, s->primID))
+      return false;
+    s->found = true;
+    s->distance = distance;
+    s->geomID = args->geomID;
+    s->primID = args->primID;
+    s->best.p = q;
+    s->best.t = distance;
+    s->best.ng = Vec3d(s->scene->TriangleNormal(mesh, args->primID));
+    s->best.vertexScale = vertexScale;
+    s->best.kind = SurfaceKind::kMesh;
+    s->best.index = mesh;
+    s->best.prim = args->primID;
+    return false;  // keep the radius: a nearer triangle may still come
+  };
+  rtcPointQuery(impl_->scene, &query, &context, callback, &state);
+  if (state.found) *on = state.best;
   return state.found;
 }
 

@@ -47,6 +47,12 @@ class TracerScene {
   bool Occluded(const Vec3f& origin, const Vec3d& dir, double tMax) const;
   // True when a mesh triangle lies within `radius` of p (area lights' surfaces are not counted).
   bool MeshWithin(const Vec3d& p, double radius) const;
+  // The mesh surface p lies on, if any: among the triangles closer to p than the tracer resolves
+  // (SurfaceResolution, ray_offset.h), the nearest (ties: lowest geometry, then triangle index, so
+  // the answer never depends on traversal order). Rays from such a point may start on either
+  // side of the surface. Fills `on`: p = that triangle's closest point, ng its front normal,
+  // vertexScale, t = the distance, kind, index and prim.
+  bool MeshSurfaceAt(const Vec3d& p, SurfaceHit* on) const;
 
   const Vec3d& offset() const { return offset_; }
   // Unit geometric normal of triangle `prim` of mesh `mesh` (local = world orientation).
