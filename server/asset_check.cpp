@@ -226,7 +226,10 @@ int RunAssetCheckChild(const std::filesystem::path& specFile, const std::filesys
   v1::JobSpec spec;
   if (!spec.ParseFromString(*bytes))
     return ReportAssetCheck(absl::InternalError("asset check: unreadable spec file"));
-  absl::StatusOr<std::unique_ptr<BlobStore>> blobs = BlobStore::Open(dataDir, maxBlobBytes);
+  // The parent server's store, in use: read it, never clean it (its DATA/tmp holds other
+  // checks' spec files and running jobs' volumes).
+  absl::StatusOr<std::unique_ptr<BlobStore>> blobs =
+      BlobStore::OpenForReading(dataDir, maxBlobBytes);
   if (!blobs.ok()) return ReportAssetCheck(blobs.status());
   const BlobAssetSource store(blobs->get(), limits.maxAssetBytes);
   const AnnouncingAssetSource assets(store);

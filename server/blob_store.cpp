@@ -205,6 +205,17 @@ absl::StatusOr<std::unique_ptr<BlobStore>> BlobStore::Open(const fs::path& dataD
   return std::unique_ptr<BlobStore>(new BlobStore(blobs, uploads, tmp, maxBlobBytes));
 }
 
+absl::StatusOr<std::unique_ptr<BlobStore>> BlobStore::OpenForReading(const fs::path& dataDir,
+                                                                     int64_t maxBlobBytes) {
+  if (maxBlobBytes <= 0) return absl::InvalidArgumentError("maxBlobBytes must be > 0");
+  const fs::path blobs = dataDir / "blobs";
+  std::error_code ec;
+  if (!fs::is_directory(blobs, ec))
+    return absl::NotFoundError(absl::StrCat(blobs.string(), ": no blob store there"));
+  return std::unique_ptr<BlobStore>(
+      new BlobStore(blobs, dataDir / "uploads", dataDir / "tmp", maxBlobBytes));
+}
+
 fs::path BlobStore::BlobPath(const std::string& hash) const {
   return blobsDir_ / hash.substr(0, 2) / hash;
 }

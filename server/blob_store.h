@@ -96,9 +96,14 @@ class BlobReader {
 
 class BlobStore {
  public:
-  // Opens (creating if needed) the store under `dataDir`. `maxBlobBytes` (> 0) bounds uploads.
+  // Opens (creating if needed) the store under `dataDir` for the server that owns it, and clears
+  // DATA/tmp (scratch files of an earlier run). `maxBlobBytes` (> 0) bounds uploads.
   static absl::StatusOr<std::unique_ptr<BlobStore>> Open(const std::filesystem::path& dataDir,
                                                          int64_t maxBlobBytes);
+  // Opens the store of a running server for reading blobs (the asset-check child): creates and
+  // clears nothing, since DATA/tmp holds that server's files in use. NOT_FOUND without a store.
+  static absl::StatusOr<std::unique_ptr<BlobStore>> OpenForReading(
+      const std::filesystem::path& dataDir, int64_t maxBlobBytes);
 
   int64_t maxBlobBytes() const { return maxBlobBytes_; }
 

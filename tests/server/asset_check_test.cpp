@@ -10,6 +10,8 @@
 #include <fstream>
 #include <string>
 
+#include "server/blob_store.h"
+
 namespace probebake::server {
 namespace {
 
@@ -103,6 +105,25 @@ TEST(AssetCheck, NoReportIsAnInternalError) {
       AssetCheck({"/nonexistent/checker"}, std::filesystem::temp_directory_path(), seconds(5))
           .Check(JobWithAMeshBlob());
   EXPECT_EQ(missing.code(), absl::StatusCode::kInternal) << missing;
+}
+
+TEST(AssetCheck, TheChildLeavesTheServersScratchFilesAlone) {
+  // The child reads the running server's store: DATA/tmp holds that server's files in use
+  // (other checks' spec files, running jobs' volumes), which it once cleared as a server does at
+  // start-up, failing parallel submits and jobs writing their volumes.
+  const std::filesystem::path data =
+      std::filesystem::temp_directory_path() / ("asset-check-data-" + std::to_string(getpid()));
+  std::filesystem::remove_all(data);
+  ASSERT_TRUE(BlobStore::Open(data, 1 << 20).ok());
+  const std::filesystem::path inUse = data / "tmp" / "job.vdb", spec = data / "tmp" / "spec.pb";
+  std::ofstream(inUse) << "volume being written";
+  std::ofstream(spec, std::ios::binary) << JobWithAMeshBlob().SerializeAsString();
+  EXPECT_EQ(RunAssetCheckChild(spec, data, 1 << 20, JobLimits()), 0);  // reports the missing blob
+  EXPECT_TRUE(std::filesystem::exists(inUse));
+  EXPECT_TRUE(std::filesystem::exists(spec));
+  EXPECT_EQ(BlobStore::OpenForReading(data / "absent", 1 << 20).status().code(),
+            absl::StatusCode::kNotFound);
+  std::filesystem::remove_all(data);
 }
 
 }  // namespace
