@@ -33,6 +33,9 @@ using google::protobuf::util::TimeUtil;
 constexpr absl::string_view kNamePrefix = "bakeJobs/";
 constexpr size_t kIdLength = 16;
 constexpr size_t kMaxRequestIdLength = 128;
+// Backoff while the job store cannot be written (a full disk): the first wait, and the longest.
+constexpr std::chrono::seconds kStoreRetryFirst{1};
+constexpr std::chrono::seconds kStoreRetryMax{30};
 
 google::protobuf::Timestamp Now() {
   return TimeUtil::GetCurrentTime();
@@ -484,6 +487,7 @@ void JobManager::EndSubscribersLocked(const std::string& name, const absl::Statu
 
 void JobManager::DispatchLoop() {
   std::unique_lock lock(mutex_);
+  auto startBackoff = kStoreRetryFirst;
   while (true) {
     wake_.wait(lock, [&] {
       return stopping_ || (!queue_.empty() && int(running_.size()) < config_.maxConcurrentJobs);
@@ -491,10 +495,22 @@ void JobManager::DispatchLoop() {
     if (stopping_) return;
     std::string name = queue_.front();
     queue_.erase(queue_.begin());
+    // A store that cannot be read or written (a full disk) leaves the job first in the queue and
+    // pauses dispatch with backoff; the job starts once the store works again.
+    auto retryLater = [&](const absl::Status& status) {
+      Logger("jobs")->error("{}: cannot start ({}); retrying in {} s", name,
+                            std::string(status.message()), startBackoff.count());
+      queue_.insert(queue_.begin(), name);
+      wake_.wait_for(lock, startBackoff, [&] { return stopping_; });
+      startBackoff = std::min(2 * startBackoff, kStoreRetryMax);
+    };
     absl::StatusOr<std::optional<StoredJob>> stored = store_->Get(name);
-    if (!stored.ok() || !*stored) {
-      Logger("jobs")->error("{}: cannot start: {}", name,
-                            stored.ok() ? "gone" : std::string(stored.status().message()));
+    if (!stored.ok()) {
+      retryLater(stored.status());
+      continue;
+    }
+    if (!*stored) {
+      Logger("jobs")->warn("{}: not started: no longer in the store", name);
       continue;
     }
     auto job = std::make_shared<RunningJob>();
@@ -508,11 +524,10 @@ void JobManager::DispatchLoop() {
     record.mutable_progress()->clear_elapsed();
     record.mutable_progress()->clear_eta();
     if (absl::Status updated = store_->Update(record); !updated.ok()) {
-      // The job stays QUEUED on disk and is retried after a restart; a store that cannot write
-      // cannot run jobs either.
-      Logger("jobs")->error("{}: cannot start: {}", name, std::string(updated.message()));
+      retryLater(updated);  // still QUEUED on disk
       continue;
     }
+    startBackoff = kStoreRetryFirst;
     running_[name] = job;
     NotifyLocked(record);
     Logger("jobs")->info("{}: running (attempt {})", name, record.attempts());
@@ -693,37 +708,56 @@ void JobManager::OnCheckpoint(RunningJob& job, const std::string& jobDigest,
 }
 
 void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
-  bool final = IsFinal(outcome.state);
-  bool committedOk = false;
+  const bool final = IsFinal(outcome.state);
+  v1::BakeJob record;
   {
     std::lock_guard lock(mutex_);
-    v1::BakeJob& record = job.record;
-    record.set_state(outcome.state);
+    record = job.record;
+  }
+  record.set_state(outcome.state);
+  if (outcome.state == v1::BakeJob::SUCCEEDED) {
+    *record.mutable_result() = outcome.result;
+    v1::BakeJobProgress* p = record.mutable_progress();
+    p->set_probes_done(outcome.result.stats().probes());
+    p->set_probes_total(outcome.result.stats().probes());
+    p->set_samples(outcome.result.stats().samples());
+    p->set_rays(outcome.result.stats().rays());
+    p->clear_eta();
+  } else if (final) {
+    *record.mutable_error() = outcome.error;
+  }
+  // A state is announced only once stored: a client told SUCCEEDED or FAILED must find the job
+  // so after a restart too. A store that cannot write (a full disk) is retried with backoff, the
+  // job staying RUNNING meanwhile; at shutdown it stays RUNNING on disk and runs again.
+  bool stored = false;
+  for (auto backoff = kStoreRetryFirst;; backoff = std::min(2 * backoff, kStoreRetryMax)) {
+    std::unique_lock lock(mutex_);
     *record.mutable_update_time() = Now();
-    if (outcome.state == v1::BakeJob::SUCCEEDED) {
-      *record.mutable_result() = outcome.result;
-      v1::BakeJobProgress* p = record.mutable_progress();
-      p->set_probes_done(outcome.result.stats().probes());
-      p->set_probes_total(outcome.result.stats().probes());
-      p->set_samples(outcome.result.stats().samples());
-      p->set_rays(outcome.result.stats().rays());
-      p->clear_eta();
-    } else if (final) {
-      *record.mutable_error() = outcome.error;
-    }
     if (final) *record.mutable_end_time() = record.update_time();
-    absl::Status committed = store_->Transaction([&]() -> absl::Status {
+    const absl::Status committed = store_->Transaction([&]() -> absl::Status {
       PB_RETURN_IF_ERROR(store_->Update(record));
       if (outcome.state == v1::BakeJob::SUCCEEDED)
         PB_RETURN_IF_ERROR(store_->PutCached(record.job_digest(), outcome.result));
       return absl::OkStatus();
     });
-    committedOk = committed.ok();
-    if (!committedOk) {
-      // On disk the job stays RUNNING, so a restart runs it again from its checkpoint.
-      Logger("jobs")->error("{}: final state not stored: {}", job.name,
-                            std::string(committed.message()));
+    if (committed.ok()) {
+      stored = true;
+      job.record = record;
+      NotifyLocked(job.record);
+      break;
     }
+    if (stopping_) {
+      Logger("jobs")->error("{}: {} not stored ({}); it runs again after the restart", job.name,
+                            v1::BakeJob::State_Name(outcome.state),
+                            std::string(committed.message()));
+      break;
+    }
+    Logger("jobs")->error("{}: {} not stored ({}); retrying in {} s", job.name,
+                          v1::BakeJob::State_Name(outcome.state), std::string(committed.message()),
+                          backoff.count());
+    wake_.wait_for(lock, backoff, [&] { return stopping_; });
+  }
+  if (stored) {
     switch (outcome.state) {
       case v1::BakeJob::SUCCEEDED:
         Logger("jobs")->info("{}: succeeded in {:.3f} s: volume {}", job.name,
@@ -739,9 +773,8 @@ void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
       default:
         break;
     }
-    NotifyLocked(record);
   }
-  if (final && committedOk) {
+  if (final && stored) {
     std::error_code ec;
     std::filesystem::remove(CheckpointPath(job.name), ec);
   }

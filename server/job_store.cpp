@@ -138,8 +138,13 @@ absl::Status JobStore::Transaction(const std::function<absl::Status()>& body) {
     status = Exec("COMMIT");
     if (status.ok()) return status;
   }
-  absl::Status rollback = Exec("ROLLBACK");
-  if (!rollback.ok()) Logger("jobs")->error("rollback failed: {}", std::string(rollback.message()));
+  // SQLite may have rolled the transaction back itself (a full disk at COMMIT): then there is
+  // nothing to roll back, and ROLLBACK would only log a spurious error.
+  if (!sqlite3_get_autocommit(db_)) {
+    absl::Status rollback = Exec("ROLLBACK");
+    if (!rollback.ok())
+      Logger("jobs")->error("rollback failed: {}", std::string(rollback.message()));
+  }
   return status;
 }
 

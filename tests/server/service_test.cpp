@@ -10,6 +10,7 @@
 #include <thread>
 
 #include <grpcpp/generic/generic_stub.h>
+#include <sqlite3.h>
 
 #include "probebake/job/digest.h"
 #include "server/job_manager.h"
@@ -567,6 +568,38 @@ TEST(Service, GracefulRestartResumesFromTheCheckpointWithTheSameBits) {
     ++resumedMessages;
   }
   EXPECT_GE(resumedMessages, 1);
+}
+
+TEST(Service, AJobsEndIsAnnouncedOnlyOnceStored) {
+  // The job store cannot be written when a bake ends: another connection holds SQLite's write
+  // lock past the server's 5 s busy timeout, failing the write as a full disk does. The end is
+  // retried with the job RUNNING; watchers learn SUCCEEDED only once it is stored, and a restart
+  // finds it so. (It was announced SUCCEEDED at once while the store kept RUNNING, so the job ran
+  // again after a restart.)
+  TestServerOptions options;
+  options.probeDelay = std::chrono::milliseconds(50);
+  TempDir dir;
+  TestServer s(options, dir.path() / "data");
+  const v1::BakeJob created = s.Create(SmallJob(4, 21));
+  auto watched = std::async(std::launch::async, [&] { return s.WaitFinal(created.name()); });
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((s.dataDir() / "jobs.sqlite").c_str(), &db), SQLITE_OK);
+  sqlite3_busy_timeout(db, 10000);  // the server may be writing progress at this moment
+  ASSERT_EQ(sqlite3_exec(db, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr), SQLITE_OK);
+  // The bake ends within 0.2 s; its end then waits out one busy timeout (5 s) and fails.
+  EXPECT_EQ(watched.wait_for(std::chrono::seconds(8)), std::future_status::timeout);
+  const auto released = steady_clock::now();
+  ASSERT_EQ(sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+  const v1::BakeJob final = watched.get();
+  EXPECT_GE(steady_clock::now(), released);
+  ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
+  EXPECT_EQ(s.bakeStats().bakes.load(), 1);
+  s.Restart();
+  const v1::BakeJob stored = s.Get(created.name());
+  EXPECT_EQ(stored.state(), v1::BakeJob::SUCCEEDED);
+  EXPECT_EQ(stored.attempts(), 1);
+  EXPECT_EQ(stored.result().volume().hash(), final.result().volume().hash());
 }
 
 TEST(Service, DrainingIsNotServingAndRefusesNewJobs) {
