@@ -110,8 +110,29 @@ absl::StatusOr<v1::ServerCapabilities> Client::GetCapabilities() {
 }
 
 absl::Status Client::UploadBlob(const v1::Digest& digest, const std::string& bytes,
-                                int64_t* bytesSent) {
-  // Where an earlier, interrupted upload stopped.
+                                int64_t* bytesSent, std::chrono::seconds stallLimit) {
+  using Clock = std::chrono::steady_clock;
+  auto lastProgress = Clock::now();
+  int64_t lastCommitted = -1;
+  auto pause = std::chrono::milliseconds(100);
+  while (true) {
+    int64_t committed = 0;
+    absl::Status sent = UploadBlobOnce(digest, bytes, bytesSent, &committed);
+    if (!absl::IsAborted(sent)) return sent;
+    // Another client's upload of this blob (a build farm's shared asset): wait while it moves.
+    if (committed != lastCommitted) lastProgress = Clock::now();
+    lastCommitted = committed;
+    if (Clock::now() - lastProgress > stallLimit)
+      return absl::AbortedError(
+          absl::StrCat(sent.message(), "; it made no progress for ", stallLimit.count(), " s"));
+    std::this_thread::sleep_for(pause);
+    pause = std::min(2 * pause, std::chrono::milliseconds(2000));
+  }
+}
+
+absl::Status Client::UploadBlobOnce(const v1::Digest& digest, const std::string& bytes,
+                                    int64_t* bytesSent, int64_t* committed) {
+  // Where an earlier, interrupted upload stopped (or another client's upload has got to).
   v1::QueryWriteStatusRequest query;
   *query.mutable_digest() = digest;
   v1::QueryWriteStatusResponse status;
@@ -119,6 +140,7 @@ absl::Status Client::UploadBlob(const v1::Digest& digest, const std::string& byt
   PB_RETURN_IF_ERROR(FromGrpc(content_->QueryWriteStatus(queryContext.get(), query, &status)));
   if (status.complete()) return absl::OkStatus();
   int64_t offset = status.committed_size();
+  *committed = offset;
 
   auto context = Context(std::nullopt);
   v1::WriteBlobResponse response;

@@ -58,9 +58,13 @@ class Client {
 
   absl::StatusOr<v1::ServerCapabilities> GetCapabilities();
 
-  // Uploads `bytes` as a blob unless the server has it, resuming a partial upload.
+  // Uploads `bytes` as a blob unless the server has it, resuming a partial upload. While another
+  // client uploads the same blob (the server takes one upload of a digest at a time and answers
+  // others ABORTED), waits for it and then skips or resumes; ABORTED only if that upload makes no
+  // progress for `stallLimit`.
   absl::Status UploadBlob(const v1::Digest& digest, const std::string& bytes,
-                          int64_t* bytesSent = nullptr);
+                          int64_t* bytesSent = nullptr,
+                          std::chrono::seconds stallLimit = std::chrono::seconds(120));
 
   // Replaces every `file` of `job` (paths relative to `jobDir`) by the digest of its bytes and
   // uploads the blobs the server lacks. INVALID_ARGUMENT naming the field for unreadable files.
@@ -91,6 +95,9 @@ class Client {
   Client(std::shared_ptr<grpc::Channel> channel, std::string token);
   std::unique_ptr<grpc::ClientContext> Context(
       std::optional<std::chrono::seconds> deadline = std::chrono::seconds(60)) const;
+  // One attempt of UploadBlob; `committed`: the server's committed size when it began.
+  absl::Status UploadBlobOnce(const v1::Digest& digest, const std::string& bytes,
+                              int64_t* bytesSent, int64_t* committed);
 
   std::shared_ptr<grpc::Channel> channel_;
   std::string token_;

@@ -5,9 +5,11 @@
 
 #include <signal.h>
 
+#include <future>
 #include <thread>
 
 #include "client/client.h"
+#include "probebake/job/digest.h"
 #include "server/checkpoint.h"
 #include "subprocess.h"
 #include "test_server.h"
@@ -212,6 +214,67 @@ TEST(ServerProcess, OneServerPerDataFolder) {
   EXPECT_NE(ReadFile(dir.path() / "second.log").find("in use by another probebake-server"),
             std::string::npos)
       << ReadFile(dir.path() / "second.log");
+}
+
+TEST(ServerProcess, AnUploadOfABlobAnotherClientIsUploadingWaitsForIt) {
+  // Two clients upload the same new blob (a build farm's shared asset): the server takes one
+  // upload of a digest at a time and answers the other ABORTED, which the CLI used to report as
+  // a failed submit. The second waits while the first moves, then finds the blob stored; it gives
+  // up only when that upload stalls for its limit.
+  TempDir dir;
+  FakeServerProcess server(dir.path() / "data", dir.path() / "server.log");
+  const std::optional<int> port = server.Port();
+  ASSERT_TRUE(port);
+  const std::string bytes(3 << 20, 'x');
+  const v1::Digest digest = DigestOf(bytes);
+  auto channel =
+      grpc::CreateChannel("127.0.0.1:" + std::to_string(*port), grpc::InsecureChannelCredentials());
+  auto content = v1::ContentStorage::NewStub(channel);
+  // The first client: a raw upload holding half the bytes, left open.
+  auto openHalf = [&](grpc::ClientContext* context, v1::WriteBlobResponse* response) {
+    auto writer = content->WriteBlob(context, response);
+    v1::WriteBlobRequest first;
+    *first.mutable_digest() = digest;
+    first.set_data(bytes.substr(0, bytes.size() / 2));
+    EXPECT_TRUE(writer->Write(first));
+    return writer;
+  };
+  {
+    grpc::ClientContext context;
+    v1::WriteBlobResponse response;
+    auto writer = openHalf(&context, &response);
+    std::unique_ptr<client::Client> second = Connect(*port);
+    ASSERT_TRUE(second);
+    const auto start = steady_clock::now();
+    auto waited = std::async(std::launch::async, [&] { return second->UploadBlob(digest, bytes); });
+    EXPECT_EQ(waited.wait_for(seconds(2)), std::future_status::timeout);
+    v1::WriteBlobRequest rest;
+    rest.set_write_offset(int64_t(bytes.size() / 2));
+    rest.set_data(bytes.substr(bytes.size() / 2));
+    rest.set_finish_write(true);
+    EXPECT_TRUE(writer->Write(rest));
+    writer->WritesDone();
+    EXPECT_TRUE(writer->Finish().ok());
+    const absl::Status uploaded = waited.get();
+    EXPECT_TRUE(uploaded.ok()) << uploaded;
+    EXPECT_GT(steady_clock::now() - start, seconds(2));
+  }
+  // A stalled first upload: the second gives up after its stall limit, naming the reason.
+  const std::string other(1 << 20, 'y');
+  const v1::Digest otherDigest = DigestOf(other);
+  grpc::ClientContext context;
+  v1::WriteBlobResponse response;
+  auto writer = content->WriteBlob(&context, &response);
+  v1::WriteBlobRequest first;
+  *first.mutable_digest() = otherDigest;
+  first.set_data(other.substr(0, 1000));
+  ASSERT_TRUE(writer->Write(first));
+  std::unique_ptr<client::Client> second = Connect(*port);
+  ASSERT_TRUE(second);
+  const absl::Status stalled = second->UploadBlob(otherDigest, other, nullptr, seconds(1));
+  EXPECT_TRUE(absl::IsAborted(stalled)) << stalled;
+  EXPECT_NE(stalled.message().find("made no progress for 1 s"), std::string::npos) << stalled;
+  context.TryCancel();
 }
 
 }  // namespace
