@@ -30,6 +30,26 @@ CREATE TABLE IF NOT EXISTS result_cache (
 
 }  // namespace
 
+namespace {
+
+// A failed SQLite call as a status whose code tells a client what it can do: a full disk is
+// RESOURCE_EXHAUSTED and says so, a database held by another writer UNAVAILABLE (retry), the rest
+// INTERNAL.
+absl::Status SqliteStatus(int rc, const std::string& message) {
+  switch (rc & 0xff) {  // the primary result code
+    case SQLITE_FULL:
+      return absl::ResourceExhaustedError(
+          absl::StrCat("the server's disk is full (job store: ", message, ")"));
+    case SQLITE_BUSY:
+    case SQLITE_LOCKED:
+      return absl::UnavailableError(absl::StrCat("the job store is busy (", message, ")"));
+    default:
+      return absl::InternalError(message);
+  }
+}
+
+}  // namespace
+
 // A prepared statement; reset and finalized by its destructor.
 class JobStore::Statement {
  public:
@@ -56,7 +76,7 @@ class JobStore::Statement {
     if (rc == SQLITE_DONE) return false;
     if (rc == SQLITE_CONSTRAINT)
       return absl::AlreadyExistsError(absl::StrCat("sqlite: ", sqlite3_errmsg(db_)));
-    return absl::InternalError(absl::StrCat("sqlite step: ", sqlite3_errmsg(db_)));
+    return SqliteStatus(rc, absl::StrCat("sqlite step: ", sqlite3_errmsg(db_)));
   }
   int64_t Int(int col) const { return sqlite3_column_int64(stmt_, col); }
   std::string Blob(int col) const {
@@ -122,10 +142,10 @@ JobStore::~JobStore() {
 absl::Status JobStore::Exec(const char* sql) {
   std::lock_guard lock(mutex_);
   char* error = nullptr;
-  if (sqlite3_exec(db_, sql, nullptr, nullptr, &error) != SQLITE_OK) {
+  if (const int rc = sqlite3_exec(db_, sql, nullptr, nullptr, &error); rc != SQLITE_OK) {
     std::string message = error ? error : "unknown error";
     sqlite3_free(error);
-    return absl::InternalError(absl::StrCat("sqlite: ", message, " in ", sql));
+    return SqliteStatus(rc, absl::StrCat("sqlite: ", message, " in ", sql));
   }
   return absl::OkStatus();
 }

@@ -315,9 +315,18 @@ grpc::ServerUnaryReactor* BakeJobsService::CreateBakeJob(grpc::CallbackServerCon
   if (!job.ok()) {
     if (auto retry = job.status().GetPayload(kRetryAfterPayload))
       context->AddTrailingMetadata("retry-after-ms", std::string(*retry));
-    Logger("server")->info("CreateBakeJob refused ({}): {}",
-                           absl::StatusCodeToString(job.status().code()),
-                           std::string(job.status().message()));
+    // The client's mistakes at info; the server's own trouble (a full disk, a broken store) is
+    // the operator's to see.
+    const absl::StatusCode code = job.status().code();
+    const spdlog::level::level_enum level =
+        code == absl::StatusCode::kResourceExhausted || code == absl::StatusCode::kUnavailable
+            ? spdlog::level::warn
+        : code == absl::StatusCode::kInternal || code == absl::StatusCode::kDataLoss ||
+                code == absl::StatusCode::kUnknown
+            ? spdlog::level::err
+            : spdlog::level::info;
+    Logger("server")->log(level, "CreateBakeJob refused ({}): {}", absl::StatusCodeToString(code),
+                          std::string(job.status().message()));
     return Done(context, job.status());
   }
   *response = std::move(*job);

@@ -1,6 +1,7 @@
 #include "server/job_store.h"
 
 #include <gtest/gtest.h>
+#include <sqlite3.h>
 
 #include "temp_dir.h"
 
@@ -23,6 +24,26 @@ v1::JobSpec Spec(int counts) {
   v1::JobSpec spec;
   for (int a = 0; a < 3; ++a) spec.mutable_grid()->add_counts(counts);
   return spec;
+}
+
+TEST(JobStore, ABusyDatabaseIsUnavailableNotInternal) {
+  // Another writer holds the database past the busy timeout (5 s): the store's error says to
+  // retry (UNAVAILABLE) rather than that the server is broken (INTERNAL); reads still work.
+  TempDir dir;
+  auto path = dir.path() / "jobs.sqlite";
+  auto store = JobStore::Open(path);
+  ASSERT_TRUE(store.ok()) << store.status();
+  ASSERT_TRUE((*store)->Insert(Record("bakeJobs/a", "", v1::BakeJob::QUEUED), Spec(3)).ok());
+  sqlite3* other = nullptr;
+  ASSERT_EQ(sqlite3_open(path.c_str(), &other), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(other, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr), SQLITE_OK);
+  const absl::Status busy =
+      (*store)->Insert(Record("bakeJobs/b", "", v1::BakeJob::QUEUED), Spec(3));
+  EXPECT_EQ(busy.code(), absl::StatusCode::kUnavailable) << busy;
+  EXPECT_TRUE((*store)->Get("bakeJobs/a").ok());
+  sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr);
+  sqlite3_close(other);
+  EXPECT_TRUE((*store)->Insert(Record("bakeJobs/b", "", v1::BakeJob::QUEUED), Spec(3)).ok());
 }
 
 TEST(JobStore, InsertGetUpdateDeleteSurviveReopen) {
