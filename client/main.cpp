@@ -288,9 +288,11 @@ int Fetch(Client& client, const v1::BakeJob& job, const std::string& out, Progre
 // transport refuses it with a bare "larger than max". Names the largest inline mesh, what usually
 // makes a job that large.
 absl::Status FitsInOneMessage(const v1::JobSpec& spec, int64_t maxMessageBytes) {
-  // Room for the request's other fields and for blob digests replacing file paths.
-  constexpr int64_t kOverhead = 4096;
+  // Room for blob digests replacing file paths; the server keeps 65536 bytes of its message limit
+  // for the rest of a job's record (service.proto, max_message_bytes).
+  constexpr int64_t kOverhead = 4096, kRecordReserve = 65536;
   const int64_t bytes = int64_t(spec.ByteSizeLong()) + kOverhead;
+  maxMessageBytes -= kRecordReserve;
   if (maxMessageBytes <= 0 || bytes <= maxMessageBytes) return absl::OkStatus();
   int largest = -1;
   for (int i = 0; i < spec.scene().meshes_size(); ++i) {
@@ -304,10 +306,10 @@ absl::Status FitsInOneMessage(const v1::JobSpec& spec, int64_t maxMessageBytes) 
                         spec.scene().meshes(largest).ByteSizeLong(),
                         " bytes): put it in a mesh file, which is uploaded as a blob");
   }
-  return absl::InvalidArgumentError(absl::StrCat("the job is about ", bytes,
-                                                 " bytes as a request, over the server's message "
-                                                 "limit of ",
-                                                 maxMessageBytes, " bytes", hint));
+  return absl::InvalidArgumentError(absl::StrCat(
+      "the job is about ", bytes,
+      " bytes as a request, over the server's message limit for a job of ", maxMessageBytes,
+      " bytes (max_message_bytes less ", kRecordReserve, " for its record)", hint));
 }
 
 int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,

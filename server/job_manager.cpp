@@ -252,6 +252,13 @@ absl::StatusOr<v1::BakeJob> JobManager::CreateJob(const v1::CreateBakeJobRequest
     if (existing) return *existing;
   }
   if (!request.has_job()) return FieldError("job", "required");
+  if (const int64_t bytes = int64_t(request.job().ByteSizeLong()),
+      limit = config_.maxMessageBytes - kJobRecordReserve;
+      bytes > limit)
+    return FieldError(
+        "job",
+        absl::StrCat(bytes, " bytes, over the ", limit, " a job may take (max_message_bytes less ",
+                     kJobRecordReserve, " for its record); put large meshes in files"));
   PB_RETURN_IF_ERROR(ValidateForServer(request.job()));
   // Reads every asset, so a mesh or map that does not parse is refused now, not mid-bake; the
   // built job also gives the digest that keys the result cache.
@@ -357,16 +364,23 @@ absl::StatusOr<v1::ListBakeJobsResponse> JobManager::ListJobs(
   std::lock_guard lock(mutex_);
   PB_ASSIGN_OR_RETURN(std::vector<StoredJob> jobs, store_->List(afterSeq, pageSize + 1));
   v1::ListBakeJobsResponse response;
-  for (size_t i = 0; i < jobs.size() && int(i) < pageSize; ++i) {
-    v1::BakeJob* out = response.add_bake_jobs();
-    auto running = running_.find(jobs[i].record.name());
-    *out = running != running_.end() ? running->second->record : jobs[i].record;
+  // A page ends early rather than outgrow one message (FULL views of large jobs): it holds at
+  // least one job, which fits by kJobRecordReserve.
+  const size_t budget = size_t(config_.maxMessageBytes - 1024);
+  size_t taken = 0;
+  for (; taken < jobs.size() && int(taken) < pageSize; ++taken) {
+    v1::BakeJob job;
+    auto running = running_.find(jobs[taken].record.name());
+    job = running != running_.end() ? running->second->record : jobs[taken].record;
     if (full) {
-      PB_ASSIGN_OR_RETURN(std::optional<v1::JobSpec> spec, store_->GetSpec(out->name()));
-      if (spec) *out->mutable_job() = std::move(*spec);
+      PB_ASSIGN_OR_RETURN(std::optional<v1::JobSpec> spec, store_->GetSpec(job.name()));
+      if (spec) *job.mutable_job() = std::move(*spec);
     }
+    // A repeated message field costs its size plus a tag and a length prefix (at most 6 bytes).
+    if (taken > 0 && response.ByteSizeLong() + job.ByteSizeLong() + 6 > budget) break;
+    *response.add_bake_jobs() = std::move(job);
   }
-  if (int(jobs.size()) > pageSize) response.set_next_page_token(PageToken(jobs[pageSize - 1].seq));
+  if (taken < jobs.size()) response.set_next_page_token(PageToken(jobs[taken - 1].seq));
   return response;
 }
 

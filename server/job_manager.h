@@ -55,7 +55,15 @@ struct JobManagerConfig {
   double checkpointIntervalSeconds = 10;  // BakeOptions.checkpointIntervalSeconds
   int defaultPageSize = 50;
   int maxPageSize = 1000;
+  // The server's gRPC message limit (ServerCapabilities.max_message_bytes): a job's spec may use
+  // all of it but kJobRecordReserve, so that its FULL view fits in one response; list pages stop
+  // short of it.
+  int64_t maxMessageBytes = int64_t(4) << 20;
 };
+
+// Bytes of max_message_bytes a CreateBakeJob's job leaves for the rest of its FULL view (name,
+// state, times, progress, result, error).
+inline constexpr int64_t kJobRecordReserve = 65536;
 
 // A WatchBakeJob stream. Called with the manager's lock held, from any thread: implementations
 // must not block and must not call back into the manager (not even from gRPC reactions that run

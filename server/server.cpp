@@ -90,6 +90,7 @@ absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
   config.threadsPerJob = options.threadsPerJob;
   config.progressIntervalSeconds = options.progressIntervalSeconds;
   config.checkpointIntervalSeconds = options.checkpointIntervalSeconds;
+  config.maxMessageBytes = options.maxMessageBytes;
   s->jobs_ = std::make_unique<JobManager>(config, s->blobs_.get(), s->store_.get(),
                                           backend(s->blobs_.get(), options.limits));
 

@@ -602,6 +602,60 @@ TEST(Service, AJobsEndIsAnnouncedOnlyOnceStored) {
   EXPECT_EQ(stored.result().volume().hash(), final.result().volume().hash());
 }
 
+// SmallJob with an extra inline mesh of about `bytes` bytes (one triangle, many unused vertices).
+v1::JobSpec JobOfAbout(int64_t bytes, uint64_t seed) {
+  v1::JobSpec spec = SmallJob(2, seed);
+  v1::Mesh* mesh = spec.mutable_scene()->add_meshes();
+  mesh->set_material("white");
+  for (int64_t i = 0; i < bytes / 24 * 3; ++i) mesh->add_positions(double((i * 7919) % 1013));
+  for (uint32_t i : {0u, 1u, 3u}) mesh->add_indices(i);
+  return spec;
+}
+
+TEST(Service, EveryJobsFullViewFitsInOneMessage) {
+  // A job may take max_message_bytes less 65536 (room for its record): one over that is refused
+  // naming the field; FULL list pages of large jobs end early instead of outgrowing a message
+  // (a GetBakeJob or ListBakeJobs of such jobs failed with "Sent message larger than max").
+  TestServer s;
+  const int64_t limit = (4 << 20) - 65536;
+  v1::JobSpec over = JobOfAbout(limit + 1000, 1);
+  ASSERT_GT(int64_t(over.ByteSizeLong()), limit);
+  v1::BakeJob ignored;
+  const grpc::Status refused = CreateStatus(s, Request(over));
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(refused.error_message().rfind("job: ", 0), 0u) << refused.error_message();
+  v1::JobSpec under = JobOfAbout(limit - 2000, 2);
+  ASSERT_LE(int64_t(under.ByteSizeLong()), limit);
+  const v1::BakeJob big = s.Create(under);
+  v1::GetBakeJobRequest get;
+  get.set_name(big.name());
+  get.set_view(v1::FULL);
+  v1::BakeJob full;
+  auto c = s.Context();
+  const grpc::Status got = s.Jobs()->GetBakeJob(c.get(), get, &full);
+  EXPECT_TRUE(got.ok()) << got.error_message();
+  EXPECT_EQ(full.job().ByteSizeLong(), under.ByteSizeLong());
+  // Three more of 1.5 MB: at most two fit in a page; paging still visits all four, once each.
+  for (uint64_t seed = 3; seed < 6; ++seed) s.Create(JobOfAbout(1500000, seed));
+  v1::ListBakeJobsRequest list;
+  list.set_page_size(5);
+  list.set_view(v1::FULL);
+  int seen = 0, pages = 0;
+  do {
+    v1::ListBakeJobsResponse page;
+    auto lc = s.Context();
+    const grpc::Status listed = s.Jobs()->ListBakeJobs(lc.get(), list, &page);
+    ASSERT_TRUE(listed.ok()) << listed.error_message();
+    EXPECT_LE(int64_t(page.ByteSizeLong()), 4 << 20);
+    EXPECT_GE(page.bake_jobs_size(), 1);
+    seen += page.bake_jobs_size();
+    ++pages;
+    list.set_page_token(page.next_page_token());
+  } while (!list.page_token().empty());
+  EXPECT_EQ(seen, 4);
+  EXPECT_GE(pages, 3);
+}
+
 TEST(Service, DrainingIsNotServingAndRefusesNewJobs) {
   TestServer s;
   // An upload in flight keeps the draining server up (up to 2 s) while we look at it.
