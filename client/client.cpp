@@ -3,6 +3,8 @@
 #include <openssl/rand.h>
 
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <thread>
@@ -351,14 +353,29 @@ absl::Status Client::FetchBlob(const v1::Digest& digest, const std::filesystem::
     auto context = Context(std::nullopt);
     auto reader = content_->ReadBlob(context.get(), request);
     v1::ReadBlobResponse chunk;
+    // A write that fails (a full disk) ends the download at once, with the system's reason; the
+    // bytes written so far stay for the next fetch.
+    auto writeFailed = [&](int error) {
+      return absl::InternalError(absl::StrCat(
+          part.string(), ": write failed: ", error ? std::strerror(error) : "unknown error",
+          "; run fetch again to continue"));
+    };
     while (reader->Read(&chunk)) {
-      file.write(chunk.data().data(), std::streamsize(chunk.data().size()));
+      errno = 0;
+      if (!file.write(chunk.data().data(), std::streamsize(chunk.data().size())).flush()) {
+        const int error = errno;
+        context->TryCancel();
+        reader->Finish();
+        return writeFailed(error);
+      }
       have += int64_t(chunk.data().size());
       if (onBytes) onBytes(have, digest.size_bytes());
     }
+    errno = 0;
     file.close();
+    const int closeError = errno;
     PB_RETURN_IF_ERROR(FromGrpc(reader->Finish()));
-    if (!file) return absl::InternalError(absl::StrCat(part.string(), ": write failed"));
+    if (!file) return writeFailed(closeError);
   }
   if (have != digest.size_bytes())
     return absl::DataLossError(absl::StrCat("received ", have, " of ", digest.size_bytes(),
