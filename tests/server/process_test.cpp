@@ -230,6 +230,20 @@ TEST(ServerProcess, AnUploadOfABlobAnotherClientIsUploadingWaitsForIt) {
   auto channel =
       grpc::CreateChannel("127.0.0.1:" + std::to_string(*port), grpc::InsecureChannelCredentials());
   auto content = v1::ContentStorage::NewStub(channel);
+  // Until the server holds `n` bytes of the upload of `d`: then that upload is open there (a
+  // written message may still be in flight when Write returns).
+  auto waitCommitted = [&](const v1::Digest& d, int64_t n) {
+    for (int i = 0; i < 1000; ++i) {
+      grpc::ClientContext context;
+      v1::QueryWriteStatusRequest query;
+      *query.mutable_digest() = d;
+      v1::QueryWriteStatusResponse status;
+      if (content->QueryWriteStatus(&context, query, &status).ok() && status.committed_size() >= n)
+        return true;
+      std::this_thread::sleep_for(milliseconds(20));
+    }
+    return false;
+  };
   // The first client: a raw upload holding half the bytes, left open.
   auto openHalf = [&](grpc::ClientContext* context, v1::WriteBlobResponse* response) {
     auto writer = content->WriteBlob(context, response);
@@ -237,6 +251,7 @@ TEST(ServerProcess, AnUploadOfABlobAnotherClientIsUploadingWaitsForIt) {
     *first.mutable_digest() = digest;
     first.set_data(bytes.substr(0, bytes.size() / 2));
     EXPECT_TRUE(writer->Write(first));
+    EXPECT_TRUE(waitCommitted(digest, int64_t(bytes.size() / 2)));
     return writer;
   };
   {
@@ -269,6 +284,7 @@ TEST(ServerProcess, AnUploadOfABlobAnotherClientIsUploadingWaitsForIt) {
   *first.mutable_digest() = otherDigest;
   first.set_data(other.substr(0, 1000));
   ASSERT_TRUE(writer->Write(first));
+  ASSERT_TRUE(waitCommitted(otherDigest, 1000));
   std::unique_ptr<client::Client> second = Connect(*port);
   ASSERT_TRUE(second);
   const absl::Status stalled = second->UploadBlob(otherDigest, other, nullptr, seconds(1));
