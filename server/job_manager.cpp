@@ -390,16 +390,20 @@ absl::StatusOr<v1::BakeJob> JobManager::CancelJob(const std::string& name) {
   auto running = running_.find(name);
   if (running != running_.end()) {
     RunningJob& job = *running->second;
-    int none = int(CancelReason::kNone);
-    job.reason.compare_exchange_strong(none, int(CancelReason::kUser));
-    job.cancel = true;
     if (!job.record.cancel_requested()) {
-      job.record.set_cancel_requested(true);
-      *job.record.mutable_update_time() = Now();
-      PB_RETURN_IF_ERROR(store_->Update(job.record));
+      // Stored first: a cancel the store refuses (a full disk) is an error, and neither stops
+      // the bake nor shows the job as cancelling.
+      v1::BakeJob record = job.record;
+      record.set_cancel_requested(true);
+      *record.mutable_update_time() = Now();
+      PB_RETURN_IF_ERROR(store_->Update(record));
+      job.record = std::move(record);
       Logger("jobs")->info("{}: cancellation requested", name);
       NotifyLocked(job.record);
     }
+    int none = int(CancelReason::kNone);
+    job.reason.compare_exchange_strong(none, int(CancelReason::kUser));
+    job.cancel = true;
     return job.record;
   }
   PB_ASSIGN_OR_RETURN(std::optional<StoredJob> stored, store_->Get(name));

@@ -602,6 +602,37 @@ TEST(Service, AJobsEndIsAnnouncedOnlyOnceStored) {
   EXPECT_EQ(stored.result().volume().hash(), final.result().volume().hash());
 }
 
+TEST(Service, ACancelTheStoreRefusesChangesNothing) {
+  // The job store cannot be written (another connection holds SQLite's write lock past the busy
+  // timeout) when a running job is cancelled: the cancel is an error, and the job neither shows
+  // cancel_requested nor stops; it ends SUCCEEDED once the store works. (It read "(cancelling)"
+  // after the refused cancel.)
+  TestServerOptions options;
+  options.probeDelay = std::chrono::milliseconds(100);
+  TempDir dir;
+  TestServer s(options, dir.path() / "data");
+  const v1::BakeJob created = s.Create(SmallJob(40, 23));
+  for (int i = 0; i < 200 && s.Get(created.name()).state() != v1::BakeJob::RUNNING; ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open((s.dataDir() / "jobs.sqlite").c_str(), &db), SQLITE_OK);
+  sqlite3_busy_timeout(db, 10000);
+  ASSERT_EQ(sqlite3_exec(db, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr), SQLITE_OK);
+  v1::CancelBakeJobRequest cancel;
+  cancel.set_name(created.name());
+  v1::BakeJob answer;
+  auto c = s.Context();
+  const grpc::Status refused = s.Jobs()->CancelBakeJob(c.get(), cancel, &answer);
+  EXPECT_EQ(refused.error_code(), grpc::StatusCode::UNAVAILABLE) << refused.error_message();
+  const v1::BakeJob after = s.Get(created.name());
+  EXPECT_FALSE(after.cancel_requested());
+  ASSERT_EQ(sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr), SQLITE_OK);
+  sqlite3_close(db);
+  const v1::BakeJob final = s.WaitFinal(created.name());
+  EXPECT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
+  EXPECT_FALSE(final.cancel_requested());
+}
+
 // SmallJob with an extra inline mesh of about `bytes` bytes (one triangle, many unused vertices).
 v1::JobSpec JobOfAbout(int64_t bytes, uint64_t seed) {
   v1::JobSpec spec = SmallJob(2, seed);
