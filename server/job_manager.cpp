@@ -748,7 +748,9 @@ void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
   // so after a restart too. A store that cannot write (a full disk) is retried with backoff, the
   // job staying RUNNING meanwhile; at shutdown it stays RUNNING on disk and runs again.
   bool stored = false;
+  int tries = 0;
   for (auto backoff = kStoreRetryFirst;; backoff = std::min(2 * backoff, kStoreRetryMax)) {
+    ++tries;
     std::unique_lock lock(mutex_);
     *record.mutable_update_time() = Now();
     if (final) *record.mutable_end_time() = record.update_time();
@@ -762,6 +764,9 @@ void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
       stored = true;
       job.record = record;
       NotifyLocked(job.record);
+      if (tries > 1)
+        Logger("jobs")->info("{}: {} stored at try {}", job.name,
+                             v1::BakeJob::State_Name(outcome.state), tries);
       break;
     }
     if (stopping_) {
