@@ -570,6 +570,31 @@ TEST(Service, GracefulRestartResumesFromTheCheckpointWithTheSameBits) {
   EXPECT_GE(resumedMessages, 1);
 }
 
+// Holds the server's job store write-locked from another SQLite connection until Release: the
+// server's writes wait out its 5 s busy timeout and fail, as they do on a full disk.
+class StoreWriteLock {
+ public:
+  explicit StoreWriteLock(const std::filesystem::path& dataDir) {
+    EXPECT_EQ(sqlite3_open((dataDir / "jobs.sqlite").c_str(), &db_), SQLITE_OK);
+    sqlite3_busy_timeout(db_, 10000);  // the server may be writing progress at this moment
+    locked_ = sqlite3_exec(db_, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK;
+    EXPECT_TRUE(locked_);
+  }
+  ~StoreWriteLock() { Release(); }
+  void Release() {
+    if (locked_) {
+      EXPECT_EQ(sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr), SQLITE_OK);
+    }
+    locked_ = false;
+    sqlite3_close(db_);
+    db_ = nullptr;
+  }
+
+ private:
+  sqlite3* db_ = nullptr;
+  bool locked_ = false;
+};
+
 TEST(Service, AJobsEndIsAnnouncedOnlyOnceStored) {
   // The job store cannot be written when a bake ends: another connection holds SQLite's write
   // lock past the server's 5 s busy timeout, failing the write as a full disk does. The end is
@@ -582,15 +607,11 @@ TEST(Service, AJobsEndIsAnnouncedOnlyOnceStored) {
   TestServer s(options, dir.path() / "data");
   const v1::BakeJob created = s.Create(SmallJob(4, 21));
   auto watched = std::async(std::launch::async, [&] { return s.WaitFinal(created.name()); });
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open((s.dataDir() / "jobs.sqlite").c_str(), &db), SQLITE_OK);
-  sqlite3_busy_timeout(db, 10000);  // the server may be writing progress at this moment
-  ASSERT_EQ(sqlite3_exec(db, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr), SQLITE_OK);
+  StoreWriteLock lock(s.dataDir());
   // The bake ends within 0.2 s; its end then waits out one busy timeout (5 s) and fails.
   EXPECT_EQ(watched.wait_for(std::chrono::seconds(8)), std::future_status::timeout);
   const auto released = steady_clock::now();
-  ASSERT_EQ(sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr), SQLITE_OK);
-  sqlite3_close(db);
+  lock.Release();
   const v1::BakeJob final = watched.get();
   EXPECT_GE(steady_clock::now(), released);
   ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
@@ -614,10 +635,7 @@ TEST(Service, ACancelTheStoreRefusesChangesNothing) {
   const v1::BakeJob created = s.Create(SmallJob(40, 23));
   for (int i = 0; i < 200 && s.Get(created.name()).state() != v1::BakeJob::RUNNING; ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open((s.dataDir() / "jobs.sqlite").c_str(), &db), SQLITE_OK);
-  sqlite3_busy_timeout(db, 10000);
-  ASSERT_EQ(sqlite3_exec(db, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr), SQLITE_OK);
+  StoreWriteLock lock(s.dataDir());
   v1::CancelBakeJobRequest cancel;
   cancel.set_name(created.name());
   v1::BakeJob answer;
@@ -626,8 +644,7 @@ TEST(Service, ACancelTheStoreRefusesChangesNothing) {
   EXPECT_EQ(refused.error_code(), grpc::StatusCode::UNAVAILABLE) << refused.error_message();
   const v1::BakeJob after = s.Get(created.name());
   EXPECT_FALSE(after.cancel_requested());
-  ASSERT_EQ(sqlite3_exec(db, "ROLLBACK", nullptr, nullptr, nullptr), SQLITE_OK);
-  sqlite3_close(db);
+  lock.Release();
   const v1::BakeJob final = s.WaitFinal(created.name());
   EXPECT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
   EXPECT_FALSE(final.cancel_requested());
