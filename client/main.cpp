@@ -288,11 +288,11 @@ int Fetch(Client& client, const v1::BakeJob& job, const std::string& out, Progre
 // transport refuses it with a bare "larger than max". Names the largest inline mesh, what usually
 // makes a job that large.
 absl::Status FitsInOneMessage(const v1::JobSpec& spec, int64_t maxMessageBytes) {
-  // Room for blob digests replacing file paths; the server keeps 65536 bytes of its message limit
-  // for the rest of a job's record (service.proto, max_message_bytes).
-  constexpr int64_t kOverhead = 4096, kRecordReserve = 65536;
+  // Room for blob digests replacing file paths; the server keeps kJobRecordReserve of its message
+  // limit for the rest of a job's record.
+  constexpr int64_t kOverhead = 4096;
   const int64_t bytes = int64_t(spec.ByteSizeLong()) + kOverhead;
-  maxMessageBytes -= kRecordReserve;
+  maxMessageBytes -= server::kJobRecordReserve;
   if (maxMessageBytes <= 0 || bytes <= maxMessageBytes) return absl::OkStatus();
   int largest = -1;
   for (int i = 0; i < spec.scene().meshes_size(); ++i) {
@@ -309,7 +309,7 @@ absl::Status FitsInOneMessage(const v1::JobSpec& spec, int64_t maxMessageBytes) 
   return absl::InvalidArgumentError(absl::StrCat(
       "the job is about ", bytes,
       " bytes as a request, over the server's message limit for a job of ", maxMessageBytes,
-      " bytes (max_message_bytes less ", kRecordReserve, " for its record)", hint));
+      " bytes (max_message_bytes less ", server::kJobRecordReserve, " for its record)", hint));
 }
 
 int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,

@@ -366,18 +366,20 @@ absl::StatusOr<v1::ListBakeJobsResponse> JobManager::ListJobs(
   v1::ListBakeJobsResponse response;
   // A page ends early rather than outgrow one message (FULL views of large jobs): it holds at
   // least one job, which fits by kJobRecordReserve.
+  // 1024 bytes stay for the response's own fields (the page token).
   const size_t budget = size_t(config_.maxMessageBytes - 1024);
-  size_t taken = 0;
+  size_t taken = 0, bytes = 0;
   for (; taken < jobs.size() && int(taken) < pageSize; ++taken) {
-    v1::BakeJob job;
     auto running = running_.find(jobs[taken].record.name());
-    job = running != running_.end() ? running->second->record : jobs[taken].record;
+    v1::BakeJob job = running != running_.end() ? running->second->record : jobs[taken].record;
     if (full) {
       PB_ASSIGN_OR_RETURN(std::optional<v1::JobSpec> spec, store_->GetSpec(job.name()));
       if (spec) *job.mutable_job() = std::move(*spec);
     }
     // A repeated message field costs its size plus a tag and a length prefix (at most 6 bytes).
-    if (taken > 0 && response.ByteSizeLong() + job.ByteSizeLong() + 6 > budget) break;
+    const size_t jobBytes = job.ByteSizeLong() + 6;
+    if (taken > 0 && bytes + jobBytes > budget) break;
+    bytes += jobBytes;
     *response.add_bake_jobs() = std::move(job);
   }
   if (taken < jobs.size()) response.set_next_page_token(PageToken(jobs[taken - 1].seq));

@@ -61,10 +61,6 @@ struct JobManagerConfig {
   int64_t maxMessageBytes = int64_t(4) << 20;
 };
 
-// Bytes of max_message_bytes a CreateBakeJob's job leaves for the rest of its FULL view (name,
-// state, times, progress, result, error).
-inline constexpr int64_t kJobRecordReserve = 65536;
-
 // A WatchBakeJob stream. Called with the manager's lock held, from any thread: implementations
 // must not block and must not call back into the manager (not even from gRPC reactions that run
 // inline in a call made here).

@@ -302,6 +302,26 @@ grpc::ServerWriteReactor<v1::ReadBlobResponse>* ContentStorageService::ReadBlob(
 
 // ---- BakeJobs ----
 
+namespace {
+
+// The client's mistakes at info; the server's own trouble (a full disk, a broken store) at warn
+// or error, for the operator to see.
+spdlog::level::level_enum RefusalLevel(absl::StatusCode code) {
+  switch (code) {
+    case absl::StatusCode::kResourceExhausted:
+    case absl::StatusCode::kUnavailable:
+      return spdlog::level::warn;
+    case absl::StatusCode::kInternal:
+    case absl::StatusCode::kDataLoss:
+    case absl::StatusCode::kUnknown:
+      return spdlog::level::err;
+    default:
+      return spdlog::level::info;
+  }
+}
+
+}  // namespace
+
 BakeJobsService::BakeJobsService(std::shared_ptr<const TokenAuth> auth,
                                  std::shared_ptr<CallCounter> calls, JobManager* jobs)
     : auth_(std::move(auth)), calls_(std::move(calls)), jobs_(jobs) {}
@@ -315,18 +335,9 @@ grpc::ServerUnaryReactor* BakeJobsService::CreateBakeJob(grpc::CallbackServerCon
   if (!job.ok()) {
     if (auto retry = job.status().GetPayload(kRetryAfterPayload))
       context->AddTrailingMetadata("retry-after-ms", std::string(*retry));
-    // The client's mistakes at info; the server's own trouble (a full disk, a broken store) is
-    // the operator's to see.
     const absl::StatusCode code = job.status().code();
-    const spdlog::level::level_enum level =
-        code == absl::StatusCode::kResourceExhausted || code == absl::StatusCode::kUnavailable
-            ? spdlog::level::warn
-        : code == absl::StatusCode::kInternal || code == absl::StatusCode::kDataLoss ||
-                code == absl::StatusCode::kUnknown
-            ? spdlog::level::err
-            : spdlog::level::info;
-    Logger("server")->log(level, "CreateBakeJob refused ({}): {}", absl::StatusCodeToString(code),
-                          std::string(job.status().message()));
+    Logger("server")->log(RefusalLevel(code), "CreateBakeJob refused ({}): {}",
+                          absl::StatusCodeToString(code), std::string(job.status().message()));
     return Done(context, job.status());
   }
   *response = std::move(*job);

@@ -294,6 +294,8 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
           if (isCancelled()) return;
           const int64_t probe = todo[t];
           const ProbeSite site = siteOf(probe);
+          // Found again rather than kept from the placement pass: one point query against
+          // thousands of rays, where keeping it would cost 24 bytes for every grid point.
           int moves;
           const Vec3d p = TraceOrigin(*tracer, site.local, &moves);
           ProbeEstimate estimate(coeffs, maxBatches);

@@ -53,15 +53,6 @@ Vec3d ClosestPointOnTriangle(const Vec3d& p, const Vec3d& a, const Vec3d& b, con
   return a + ab * (vb * denom) + ac * (vc * denom);
 }
 
-struct PointQueryState {
-  const TracerScene* scene;
-  const std::vector<const float*>* verts;
-  const std::vector<const uint32_t*>* indices;
-  const std::vector<uint32_t>* meshOfGeom;  // mesh index by geometry ID, or UINT32_MAX
-  Vec3d p;
-  bool found = false;
-};
-
 Vec3d Vertex(const float* v, uint32_t i) {
   return {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
 }
@@ -318,8 +309,13 @@ bool TracerScene::Occluded(const Vec3f& origin, const Vec3d& dir, double tMax) c
   return ray.tfar < 0;
 }
 
-bool TracerScene::MeshWithin(const Vec3d& p, double radius) const {
-  PointQueryState state{this, &meshVerts_, &meshIndices_, &impl_->meshOfGeom, p};
+template <typename Visit>
+void TracerScene::VisitMeshTrianglesNear(const Vec3d& p, double radius, Visit&& visit) const {
+  struct State {
+    const TracerScene* scene;
+    Visit* visit;
+    bool stopped = false;
+  } state{this, &visit};
   RTCPointQuery query;
   query.x = float(p.x);
   query.y = float(p.y);
@@ -329,78 +325,63 @@ bool TracerScene::MeshWithin(const Vec3d& p, double radius) const {
   RTCPointQueryContext context;
   rtcInitPointQueryContext(&context);
   auto callback = [](RTCPointQueryFunctionArguments* args) -> bool {
-    auto* s = static_cast<PointQueryState*>(args->userPtr);
-    if (s->found || args->geomID >= s->meshOfGeom->size()) return false;
-    const uint32_t mesh = (*s->meshOfGeom)[args->geomID];
-    if (mesh == UINT32_MAX) return false;
-    const float* v = (*s->verts)[mesh];
-    const uint32_t* idx = (*s->indices)[mesh] + 3 * args->primID;
-    const Vec3d q =
-        ClosestPointOnTriangle(s->p, Vertex(v, idx[0]), Vertex(v, idx[1]), Vertex(v, idx[2]));
-    if (Length(q - s->p) <= args->query->radius) {
-      s->found = true;
-      args->query->radius = 0;  // found one: shrink the search to end traversal quickly
-      return true;
-    }
-    return false;
-  };
-  rtcPointQuery(impl_->scene, &query, &context, callback, &state);
-  return state.found;
-}
-
-bool TracerScene::MeshSurfaceAt(const Vec3d& p, SurfaceHit* on) const {
-  struct State {
-    const TracerScene* scene;
-    const std::vector<uint32_t>* meshOfGeom;
-    Vec3d p;
-    bool found = false;
-    double distance = 0;
-    unsigned geomID = 0, primID = 0;
-    SurfaceHit best;
-  } state{this, &impl_->meshOfGeom, p};
-  // Every triangle's offset is at most that of the largest coordinates in the scene.
-  const double maxAbs = std::max(
-      {MaxComponent(Abs(p)), MaxComponent(Abs(boundsMin_)), MaxComponent(Abs(boundsMax_))});
-  RTCPointQuery query;
-  query.x = float(p.x);
-  query.y = float(p.y);
-  query.z = float(p.z);
-  query.radius = float(2 * SurfaceResolution(p, maxAbs));
-  query.time = 0;
-  RTCPointQueryContext context;
-  rtcInitPointQueryContext(&context);
-  auto callback = [](RTCPointQueryFunctionArguments* args) -> bool {
     auto* s = static_cast<State*>(args->userPtr);
-    if (args->geomID >= s->meshOfGeom->size()) return false;
-    const uint32_t mesh = (*s->meshOfGeom)[args->geomID];
+    const std::vector<uint32_t>& meshOfGeom = s->scene->impl_->meshOfGeom;
+    if (s->stopped || args->geomID >= meshOfGeom.size()) return false;
+    const uint32_t mesh = meshOfGeom[args->geomID];
     if (mesh == UINT32_MAX) return false;
     const float* v = s->scene->meshVerts_[mesh];
     const uint32_t* idx = s->scene->meshIndices_[mesh] + 3 * args->primID;
-    const Vec3d a = Vertex(v, idx[0]), b = Vertex(v, idx[1]), c = Vertex(v, idx[2]);
-    const double vertexScale =
-        std::max({MaxComponent(Abs(a)), MaxComponent(Abs(b)), MaxComponent(Abs(c))});
-    const Vec3d q = ClosestPointOnTriangle(s->p, a, b, c);
-    const double distance = Length(q - s->p);
-    if (!(distance < SurfaceResolution(q, vertexScale))) return false;
-    if (s->found && std::tie(distance, args->geomID, args->primID) >=
-                        std::tie(s->distance, s->geomID, s->primID))
+    if (!(*s->visit)(mesh, args->geomID, args->primID, Vertex(v, idx[0]), Vertex(v, idx[1]),
+                     Vertex(v, idx[2])))
       return false;
-    s->found = true;
-    s->distance = distance;
-    s->geomID = args->geomID;
-    s->primID = args->primID;
-    s->best.p = q;
-    s->best.t = distance;
-    s->best.ng = Vec3d(s->scene->TriangleNormal(mesh, args->primID));
-    s->best.vertexScale = vertexScale;
-    s->best.kind = SurfaceKind::kMesh;
-    s->best.index = mesh;
-    s->best.prim = args->primID;
-    return false;  // keep the radius: a nearer triangle may still come
+    s->stopped = true;
+    args->query->radius = 0;  // done: shrink the search to end traversal quickly
+    return true;
   };
   rtcPointQuery(impl_->scene, &query, &context, callback, &state);
-  if (state.found) *on = state.best;
-  return state.found;
+}
+
+bool TracerScene::MeshWithin(const Vec3d& p, double radius) const {
+  bool found = false;
+  VisitMeshTrianglesNear(
+      p, radius, [&](uint32_t, unsigned, unsigned, const Vec3d& a, const Vec3d& b, const Vec3d& c) {
+        found = Length(ClosestPointOnTriangle(p, a, b, c) - p) <= double(float(radius));
+        return found;
+      });
+  return found;
+}
+
+bool TracerScene::MeshSurfaceAt(const Vec3d& p, SurfaceHit* on) const {
+  // Every triangle's resolution is at most that of the largest coordinates in the scene.
+  const double maxAbs = std::max(
+      {MaxComponent(Abs(p)), MaxComponent(Abs(boundsMin_)), MaxComponent(Abs(boundsMax_))});
+  bool found = false;
+  unsigned bestGeom = 0, bestPrim = 0;
+  VisitMeshTrianglesNear(
+      p, 2 * SurfaceResolution(p, maxAbs),
+      [&](uint32_t mesh, unsigned geomID, unsigned primID, const Vec3d& a, const Vec3d& b,
+          const Vec3d& c) {
+        const double vertexScale =
+            std::max({MaxComponent(Abs(a)), MaxComponent(Abs(b)), MaxComponent(Abs(c))});
+        const Vec3d q = ClosestPointOnTriangle(p, a, b, c);
+        const double distance = Length(q - p);
+        if (!(distance < SurfaceResolution(q, vertexScale))) return false;
+        if (found && std::tie(distance, geomID, primID) >= std::tie(on->t, bestGeom, bestPrim))
+          return false;
+        found = true;
+        bestGeom = geomID;
+        bestPrim = primID;
+        on->p = q;
+        on->t = distance;
+        on->ng = Vec3d(TriangleNormal(mesh, primID));
+        on->vertexScale = vertexScale;
+        on->kind = SurfaceKind::kMesh;
+        on->index = mesh;
+        on->prim = primID;
+        return false;  // a nearer triangle may still come
+      });
+  return found;
 }
 
 }  // namespace probebake

@@ -68,6 +68,11 @@ class TracerScene {
   };
   struct Impl;
 
+  // Calls visit(mesh, geomID, primID, a, b, c) with the local vertices of mesh triangles whose
+  // bounds come within `radius` of p (Embree's point query), until it returns true.
+  template <typename Visit>
+  void VisitMeshTrianglesNear(const Vec3d& p, double radius, Visit&& visit) const;
+
   TracerScene() = default;
 
   Vec3d offset_;
