@@ -66,6 +66,8 @@ std::string JobSummary(const v1::BakeJob& job) {
     absl::StrAppend(&line, ": ", job.error().message());
   if (job.cancel_requested() && job.state() == v1::BakeJob::RUNNING)
     absl::StrAppend(&line, " (cancelling)");
+  if (!p.waiting().empty() && job.state() == v1::BakeJob::RUNNING)
+    absl::StrAppend(&line, " (", p.waiting(), ")");
   return line;
 }
 
@@ -99,9 +101,12 @@ void ProgressView::Update(const v1::BakeJob& job) {
     std::fflush(stdout);
     return;
   }
-  bool stateChanged = int(job.state()) != lastState_;
+  const v1::BakeJobProgress& p = job.progress();
+  // A wait begun or ended (a full disk on the server) is news like a state.
+  bool stateChanged = int(job.state()) != lastState_ || p.waiting() != lastWaiting_;
   lastState_ = int(job.state());
-  if (mode_ == Mode::kLines || job.state() != v1::BakeJob::RUNNING) {
+  lastWaiting_ = p.waiting();
+  if (mode_ == Mode::kLines || job.state() != v1::BakeJob::RUNNING || !p.waiting().empty()) {
     // A line per state; while running (lines mode) only when something changed.
     if (stateChanged) {
       Done();
@@ -109,7 +114,6 @@ void ProgressView::Update(const v1::BakeJob& job) {
     }
     return;
   }
-  const v1::BakeJobProgress& p = job.progress();
   Bar(job.name(), p.probes_done(), p.probes_total(),
       double(TimeUtil::DurationToMilliseconds(p.elapsed())) / 1000.0, p.probes_resumed(),
       p.has_eta() ? double(TimeUtil::DurationToMilliseconds(p.eta())) / 1000.0 : -1,

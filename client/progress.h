@@ -41,6 +41,7 @@ class ProgressView {
   Mode mode_;
   bool barOpen_ = false;
   int lastState_ = -1;
+  std::string lastWaiting_;  // the job's progress.waiting last shown
   std::chrono::steady_clock::time_point lastDraw_{};
 };
 

@@ -25,8 +25,9 @@ struct BakeBackend {
   std::function<absl::StatusOr<BakeJob>(const v1::JobSpec&)> build;
   // Bakes (probebake::Bake's contract: BakeOptions hooks, CANCELLED when cancelled).
   std::function<absl::StatusOr<ProbeVolume>(const BakeJob&, const BakeOptions&)> bake;
-  // Writes the volume file at `path` (WriteProbeVolume's contract).
-  std::function<absl::Status(const std::string& path, ProbeVolume&&, const VolumeMetadata&)>
+  // Writes the volume file at `path` (WriteProbeVolume's contract). The volume is left as it
+  // is, so a write that failed for lack of space can be tried again.
+  std::function<absl::Status(const std::string& path, const ProbeVolume&, const VolumeMetadata&)>
       writeVolume;
 };
 

@@ -153,6 +153,7 @@ void JobManager::Shutdown() {
     }
   }
   wake_.notify_all();
+  backoff_.notify_all();
   if (dispatcher_.joinable()) dispatcher_.join();
   auto start = std::chrono::steady_clock::now();
   {
@@ -406,6 +407,7 @@ absl::StatusOr<v1::BakeJob> JobManager::CancelJob(const std::string& name) {
     int none = int(CancelReason::kNone);
     job.reason.compare_exchange_strong(none, int(CancelReason::kUser));
     job.cancel = true;
+    backoff_.notify_all();  // a job waiting to store its volume stops waiting
     return job.record;
   }
   PB_ASSIGN_OR_RETURN(std::optional<StoredJob> stored, store_->Get(name));
@@ -654,13 +656,44 @@ JobManager::Outcome JobManager::Execute(RunningJob& job) {
     volume->stats.rays += job.carried.rays;
   }
   BakeStats stats = volume->stats;
+  // Not written to the file; freed so the write holds no more memory than it needs.
+  std::vector<std::vector<float>>().swap(volume->radianceStdError);
+  std::vector<float>().swap(volume->autoWindowT);
   std::filesystem::path tmp =
       blobs_->tmpDir() / absl::StrCat(job.name.substr(kNamePrefix.size()), ".vdb");
-  if (absl::Status written =
-          backend_.writeVolume(tmp.string(), std::move(*volume), VolumeMetadataFor(*built));
-      !written.ok())
-    return fail(written, "store");
-  absl::StatusOr<v1::Digest> digest = blobs_->ImportFile(tmp);
+  const VolumeMetadata meta = VolumeMetadataFor(*built);
+  auto store = [&]() -> absl::StatusOr<v1::Digest> {
+    PB_RETURN_IF_ERROR(backend_.writeVolume(tmp.string(), *volume, meta));
+    return blobs_->ImportFile(tmp);
+  };
+  // A full disk must not cost the bake (hours, on a farm): the volume stays in memory and its
+  // write is retried with backoff, the job RUNNING with progress.waiting saying why, until space
+  // returns, the job is cancelled, or the server stops (the job runs again after the restart,
+  // from its checkpoint). Any other error fails the job.
+  absl::StatusOr<v1::Digest> digest = store();
+  int tries = 1;
+  for (auto backoff = kStoreRetryFirst; absl::IsResourceExhausted(digest.status());
+       backoff = std::min(2 * backoff, kStoreRetryMax)) {
+    const std::string reason(digest.status().message());
+    Logger("jobs")->warn("{}: volume not stored ({}); retrying in {} s", job.name, reason,
+                         backoff.count());
+    {
+      std::unique_lock lock(mutex_);
+      SetWaitingLocked(job, absl::StrCat("waiting for disk space to store the volume: ", reason));
+      backoff_.wait_for(lock, backoff, [&] { return stopping_ || job.cancel.load(); });
+      if (job.cancel) {
+        SetWaitingLocked(job, "");
+        return cancelled();
+      }
+    }
+    digest = store();
+    ++tries;
+  }
+  if (tries > 1) {
+    std::lock_guard lock(mutex_);
+    SetWaitingLocked(job, "");
+    if (digest.ok()) Logger("jobs")->info("{}: volume stored at try {}", job.name, tries);
+  }
   if (!digest.ok()) return fail(digest.status(), "store");
 
   outcome.state = v1::BakeJob::SUCCEEDED;
@@ -698,6 +731,13 @@ void JobManager::OnProgress(RunningJob& job, const BakeProgress& progress) {
   else
     p->clear_error_estimate();
   p->set_probes_resumed(job.probesResumed);
+  *job.record.mutable_update_time() = Now();
+  NotifyLocked(job.record);
+}
+
+void JobManager::SetWaitingLocked(RunningJob& job, const std::string& why) {
+  if (job.record.progress().waiting() == why) return;
+  job.record.mutable_progress()->set_waiting(why);
   *job.record.mutable_update_time() = Now();
   NotifyLocked(job.record);
 }
@@ -780,7 +820,7 @@ void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
     Logger("jobs")->error("{}: {} not stored ({}); retrying in {} s", job.name,
                           v1::BakeJob::State_Name(outcome.state), std::string(committed.message()),
                           backoff.count());
-    wake_.wait_for(lock, backoff, [&] { return stopping_; });
+    backoff_.wait_for(lock, backoff, [&] { return stopping_; });
   }
   if (stored) {
     switch (outcome.state) {

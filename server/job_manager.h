@@ -137,6 +137,9 @@ class JobManager {
   void OnProgress(RunningJob& job, const BakeProgress& progress);
   void OnCheckpoint(RunningJob& job, const std::string& jobDigest, const ProbeVolume& volume,
                     const std::vector<uint8_t>& done);
+  // Sets progress.waiting (why a running job is not advancing; empty: it is) and announces a
+  // change; mutex_ held.
+  void SetWaitingLocked(RunningJob& job, const std::string& why);
   // Commits the record of a job leaving RUNNING (and its cache entry) and announces it.
   void Finish(RunningJob& job, const Outcome& outcome);
 
@@ -157,7 +160,10 @@ class JobManager {
   std::mutex mutex_;
   std::condition_variable wake_;      // dispatcher: queue or slots changed, or stopping
   std::condition_variable jobsIdle_;  // running_ became empty
-  std::vector<std::string> queue_;    // names of QUEUED jobs, creation order
+  // Running jobs waiting out a backoff (the store or the volume cannot be written): a job was
+  // cancelled, or stopping. Apart from wake_, whose notify_one must reach the dispatcher.
+  std::condition_variable backoff_;
+  std::vector<std::string> queue_;  // names of QUEUED jobs, creation order
   std::map<std::string, std::shared_ptr<RunningJob>> running_;
   std::multimap<std::string, std::weak_ptr<JobSubscriber>> subscribers_;
   bool stopping_ = false;

@@ -13,9 +13,9 @@ BakeBackend ProductionBackend(const BlobStore* blobs, const JobLimits& limits) {
     return BuildBakeJob(spec, assets, limits);
   };
   backend.bake = [](const BakeJob& job, const BakeOptions& options) { return Bake(job, options); };
-  backend.writeVolume = [](const std::string& path, ProbeVolume&& volume,
+  backend.writeVolume = [](const std::string& path, const ProbeVolume& volume,
                            const VolumeMetadata& meta) {
-    return WriteProbeVolume(path, std::move(volume), meta);
+    return WriteProbeVolume(path, volume, meta);
   };
   return backend;
 }

@@ -129,7 +129,7 @@ server::BakeBackend FakeBackend(const server::BlobStore* blobs, const JobLimits&
   backend.bake = [probeDelay, stats](const BakeJob& job, const BakeOptions& options) {
     return FakeBake(job, options, probeDelay, stats);
   };
-  backend.writeVolume = [](const std::string& path, ProbeVolume&& volume,
+  backend.writeVolume = [](const std::string& path, const ProbeVolume& volume,
                            const VolumeMetadata& /*meta*/) {
     std::vector<uint8_t> done(volume.active.begin(), volume.active.end());
     return server::WriteCheckpoint(path, kFakeVolumeTag, volume, done);

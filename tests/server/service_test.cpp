@@ -2,6 +2,8 @@
 // test the service, not the tracer, and stay fast and deterministic).
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <fstream>
 #include <future>
@@ -12,6 +14,7 @@
 #include <grpcpp/generic/generic_stub.h>
 #include <sqlite3.h>
 
+#include "absl/strings/match.h"
 #include "probebake/job/digest.h"
 #include "server/job_manager.h"
 #include "test_server.h"
@@ -648,6 +651,101 @@ TEST(Service, ACancelTheStoreRefusesChangesNothing) {
   const v1::BakeJob final = s.WaitFinal(created.name());
   EXPECT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
   EXPECT_FALSE(final.cancel_requested());
+}
+
+// A volume write failing as on a full disk (what WriteProbeVolume returns for ENOSPC).
+absl::Status DiskFull() {
+  return absl::ResourceExhaustedError(
+      "data/tmp/x.vdb: writing grid radiance_sh_00 failed: No "
+      "space left on device");
+}
+
+// Whether any RUNNING message says the job waits for disk space.
+bool SawWaitingForSpace(const std::vector<v1::BakeJob>& messages) {
+  return std::any_of(messages.begin(), messages.end(), [](const v1::BakeJob& m) {
+    return m.state() == v1::BakeJob::RUNNING &&
+           absl::StartsWith(m.progress().waiting(),
+                            "waiting for disk space to store the volume: ") &&
+           absl::StrContains(m.progress().waiting(), "No space left on device");
+  });
+}
+
+TEST(Service, AFullDiskPausesTheVolumeWriteAndLosesNoBake) {
+  // The volume cannot be written twice (a full disk), then can: the job stays RUNNING, its
+  // progress says it waits for space, and it succeeds with the volume of its one bake. (The job
+  // ended FAILED at stage "store", its bake lost.)
+  std::atomic<int> writes{0};
+  TestServerOptions options;
+  options.volumeWriteFault = [&] { return ++writes <= 2 ? DiskFull() : absl::OkStatus(); };
+  TestServer s(options);
+  const v1::BakeJob created = s.Create(SmallJob(4, 31));
+  std::vector<v1::BakeJob> messages;
+  const v1::BakeJob final = s.WaitFinal(created.name(), &messages);
+  ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
+  EXPECT_EQ(writes.load(), 3);
+  EXPECT_EQ(s.bakeStats().bakes.load(), 1);
+  EXPECT_EQ(final.attempts(), 1);
+  EXPECT_TRUE(SawWaitingForSpace(messages));
+  EXPECT_EQ(final.progress().waiting(), "");
+  ExpectFakeVolume(s.Download(final.result().volume()), 4, 31);
+}
+
+TEST(Service, AJobWaitingForDiskSpaceCanBeCancelledOrRestarted) {
+  // While a job waits to store its volume, a cancel ends it CANCELLED, and a shutdown requeues
+  // it: after the restart, with space back, it bakes again and succeeds.
+  std::atomic<bool> full{true};
+  std::atomic<int> writes{0};
+  TestServerOptions options;
+  options.volumeWriteFault = [&] {
+    ++writes;
+    return full ? DiskFull() : absl::OkStatus();
+  };
+  TempDir dir;
+  TestServer s(options, dir.path() / "data");
+  auto waitForWaiting = [&](const std::string& name) {
+    for (int i = 0; i < 1000 && s.Get(name).progress().waiting().empty(); ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    EXPECT_FALSE(s.Get(name).progress().waiting().empty());
+  };
+
+  const v1::BakeJob first = s.Create(SmallJob(3, 32));
+  waitForWaiting(first.name());
+  v1::CancelBakeJobRequest cancel;
+  cancel.set_name(first.name());
+  v1::BakeJob answer;
+  auto c = s.Context();
+  ASSERT_TRUE(s.Jobs()->CancelBakeJob(c.get(), cancel, &answer).ok());
+  const v1::BakeJob cancelled = s.WaitFinal(first.name());
+  EXPECT_EQ(cancelled.state(), v1::BakeJob::CANCELLED) << cancelled.DebugString();
+  EXPECT_EQ(cancelled.error().code(), int(grpc::StatusCode::CANCELLED));
+
+  const v1::BakeJob second = s.Create(SmallJob(3, 33));
+  waitForWaiting(second.name());
+  s.Stop();
+  EXPECT_EQ(s.bakeStats().bakes.load(), 2);
+  full = false;
+  s.Restart();
+  const v1::BakeJob final = s.WaitFinal(second.name());
+  ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
+  EXPECT_EQ(final.attempts(), 2);
+  ExpectFakeVolume(s.Download(final.result().volume()), 3, 33);
+}
+
+TEST(Service, AVolumeWriteFailingForAnotherReasonFailsTheJob) {
+  // Only a lack of space is waited out: another write error ends the job FAILED at stage
+  // "store" at once, without a retry.
+  std::atomic<int> writes{0};
+  TestServerOptions options;
+  options.volumeWriteFault = [&] {
+    ++writes;
+    return absl::InternalError("data/tmp/x.vdb: OpenVDB: something broke");
+  };
+  TestServer s(options);
+  const v1::BakeJob final = s.WaitFinal(s.Create(SmallJob(2, 34)).name());
+  EXPECT_EQ(final.state(), v1::BakeJob::FAILED);
+  EXPECT_EQ(final.error().code(), int(grpc::StatusCode::INTERNAL));
+  EXPECT_EQ(final.error().details().at("stage"), "store");
+  EXPECT_EQ(writes.load(), 1);
 }
 
 // SmallJob with an extra inline mesh of about `bytes` bytes (one triangle, many unused vertices).

@@ -87,8 +87,18 @@ void TestServer::Start() {
   auto delay = options_.probeDelay;
   FakeBakeStats* stats = stats_.get();
   auto started = server::ProbebakeServer::Start(
-      o, [delay, stats](const server::BlobStore* blobs, const JobLimits& limits) {
-        return FakeBackend(blobs, limits, delay, stats);
+      o, [delay, stats, fault = options_.volumeWriteFault](const server::BlobStore* blobs,
+                                                           const JobLimits& limits) {
+        server::BakeBackend backend = FakeBackend(blobs, limits, delay, stats);
+        if (fault) {
+          backend.writeVolume = [fault, write = backend.writeVolume](const std::string& path,
+                                                                     const ProbeVolume& volume,
+                                                                     const VolumeMetadata& meta) {
+            if (absl::Status failed = fault(); !failed.ok()) return failed;
+            return write(path, volume, meta);
+          };
+        }
+        return backend;
       });
   ASSERT_TRUE(started.ok()) << started.status();
   server_ = std::move(*started);

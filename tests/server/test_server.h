@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -36,6 +37,9 @@ struct TestServerOptions {
   std::string token;  // empty: no auth
   double checkpointIntervalSeconds = 0.05;
   JobLimits limits;
+  // Called before each volume write; a status other than OK fails that write with it (a full
+  // disk: RESOURCE_EXHAUSTED). Unset: writes succeed.
+  std::function<absl::Status()> volumeWriteFault;
 };
 
 class TestServer {
