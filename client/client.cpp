@@ -301,6 +301,14 @@ absl::StatusOr<v1::BakeJob> Client::CancelJob(const std::string& name) {
   return job;
 }
 
+absl::Status Client::DeleteJob(const std::string& name) {
+  v1::DeleteBakeJobRequest request;
+  request.set_name(name);
+  google::protobuf::Empty empty;
+  auto context = Context();
+  return FromGrpc(jobs_->DeleteBakeJob(context.get(), request, &empty));
+}
+
 absl::StatusOr<v1::BakeJob> Client::Watch(const std::string& name,
                                           const std::function<void(const v1::BakeJob&)>& onUpdate,
                                           std::chrono::seconds reconnectFor) {

@@ -78,6 +78,8 @@ class Client {
   absl::StatusOr<v1::BakeJob> GetJob(const std::string& name);
   absl::StatusOr<v1::ListBakeJobsResponse> ListJobs(int pageSize, const std::string& pageToken);
   absl::StatusOr<v1::BakeJob> CancelJob(const std::string& name);
+  // Forgets a job that is not running (FAILED_PRECONDITION for a running one).
+  absl::Status DeleteJob(const std::string& name);
 
   // Streams the job's states to `onUpdate` until a final state, which it returns. A stream broken
   // by a server restart (UNAVAILABLE) is resumed for up to `reconnectFor`.

@@ -3,7 +3,7 @@
 //   probebake bake JOB.json -o OUT.vdb [--threads N] [--json]
 //   probebake inspect OUT.vdb [--json] [--slice AXIS=VALUE -o PNG]
 //   probebake submit JOB.json [--wait] [-o OUT.vdb] [--skip-cache] [--request-id ID]
-//   probebake watch NAME | status NAME | fetch NAME -o OUT.vdb | cancel NAME | list
+//   probebake watch NAME | status NAME | fetch NAME -o OUT.vdb | cancel NAME | delete NAME | list
 //   client options: --server ADDR ($PROBEBAKE_SERVER, default 127.0.0.1:50051),
 //                   --token-file F ($PROBEBAKE_TOKEN), --tls, --tls-ca F, --json
 //
@@ -399,6 +399,17 @@ int RunCancel(const ClientFlags& flags, const std::string& name) {
   return kExitOk;
 }
 
+int RunDelete(const ClientFlags& flags, const std::string& name) {
+  auto client = ConnectFrom(flags);
+  if (!client.ok()) return Fail(client.status());
+  if (absl::Status deleted = (*client)->DeleteJob(name); !deleted.ok()) return Fail(deleted);
+  if (flags.json)
+    std::printf("{\"deleted\":%s}\n", JsonQuote(name).c_str());
+  else
+    std::printf("%s deleted\n", name.c_str());
+  return kExitOk;
+}
+
 int RunList(const ClientFlags& flags, int pageSize) {
   auto client = ConnectFrom(flags);
   if (!client.ok()) return Fail(client.status());
@@ -468,6 +479,10 @@ int Main(int argc, char** argv) {
   CLI::App* cancel = app.add_subcommand("cancel", "Cancel a job");
   cancel->add_option("name", name, "bakeJobs/<id>")->required();
   AddClientFlags(cancel, &flags);
+  CLI::App* del = app.add_subcommand(
+      "delete", "Forget a job that is not running (the server then frees its files)");
+  del->add_option("name", name, "bakeJobs/<id>")->required();
+  AddClientFlags(del, &flags);
   CLI::App* list = app.add_subcommand("list", "List jobs, oldest first");
   list->add_option("--page-size", pageSize, "Jobs per request")->check(CLI::PositiveNumber);
   AddClientFlags(list, &flags);
@@ -492,6 +507,7 @@ int Main(int argc, char** argv) {
   if (*status) return RunStatus(flags, name);
   if (*fetch) return RunFetch(flags, name, out);
   if (*cancel) return RunCancel(flags, name);
+  if (*del) return RunDelete(flags, name);
   if (*list) return RunList(flags, pageSize);
   return kExitUsage;
 }

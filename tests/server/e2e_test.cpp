@@ -289,6 +289,14 @@ TEST(EndToEnd, CliExitCodes) {
   EXPECT_EQ(Cli({"watch", name}, env).exitCode, 3);
   RunResult fetchCancelled = Cli({"fetch", name, "-o", (dir.path() / "c.vdb").string()}, env);
   EXPECT_EQ(fetchCancelled.exitCode, 3);
+  // delete: 0, then the job is unknown (2), as is deleting it again.
+  RunResult deleted = Cli({"delete", name}, env);
+  EXPECT_EQ(deleted.exitCode, 0) << deleted.err;
+  EXPECT_EQ(deleted.out, name + " deleted\n");
+  EXPECT_EQ(Cli({"status", name}, env).exitCode, 2);
+  RunResult deletedAgain = Cli({"delete", name}, env);
+  EXPECT_EQ(deletedAgain.exitCode, 2);
+  EXPECT_NE(deletedAgain.err.find("no such job"), std::string::npos) << deletedAgain.err;
   // 0: a good job, watched, fetched.
   RunResult good =
       Cli({"submit", job.string(), "--wait", "-o", (dir.path() / "g.vdb").string()}, env);
