@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <optional>
 #include <system_error>
 
 #include "absl/strings/str_cat.h"
@@ -230,12 +231,22 @@ bool BlobStore::Contains(const v1::Digest& digest) const {
   return S_ISREG(st.st_mode) && st.st_size == digest.size_bytes();
 }
 
-std::vector<v1::Digest> BlobStore::FindMissing(const std::vector<v1::Digest>& digests) const {
+bool BlobStore::Touch(const v1::Digest& digest) {
+  std::lock_guard lock(mutex_);
+  if (!Contains(digest)) return false;
+  const fs::path path = BlobPath(digest.hash());
+  // A store that cannot be written keeps its blobs anyway: nothing is collected there.
+  if (::utimensat(AT_FDCWD, path.c_str(), nullptr, 0) != 0)
+    Logger("blobs")->debug("touch {}: {}", path.string(), std::strerror(errno));
+  return true;
+}
+
+std::vector<v1::Digest> BlobStore::FindMissing(const std::vector<v1::Digest>& digests) {
   std::vector<v1::Digest> missing;
   std::set<std::pair<std::string, int64_t>> seen;
   for (const v1::Digest& d : digests) {
     if (!seen.insert({d.hash(), d.size_bytes()}).second) continue;
-    if (!Contains(d)) missing.push_back(d);
+    if (!Touch(d)) missing.push_back(d);
   }
   return missing;
 }
@@ -293,7 +304,10 @@ absl::Status BlobStore::Publish(const fs::path& from, const std::string& hash) {
   if (ec)
     return absl::InternalError(
         absl::StrCat("create ", target.parent_path().string(), ": ", ec.message()));
-  if (::rename(from.c_str(), target.c_str()) != 0) return ErrnoError("rename", from, errno);
+  {
+    std::lock_guard lock(mutex_);  // not between a collection's check of the name and its removal
+    if (::rename(from.c_str(), target.c_str()) != 0) return ErrnoError("rename", from, errno);
+  }
   PB_RETURN_IF_ERROR(FsyncDir(target.parent_path()));
   Logger("blobs")->debug("stored blob {}", hash);
   return absl::OkStatus();
@@ -337,13 +351,55 @@ absl::StatusOr<v1::Digest> BlobStore::ImportFile(const fs::path& path) {
   v1::Digest digest;
   digest.set_hash(hash);
   digest.set_size_bytes(size);
-  if (Contains(digest)) {
+  if (Touch(digest)) {
     std::error_code ec;
     fs::remove(path, ec);
   } else {
     PB_RETURN_IF_ERROR(Publish(path, digest.hash()));
   }
   return digest;
+}
+
+BlobStore::Collected BlobStore::Collect(const std::set<std::string>& live,
+                                        std::chrono::seconds grace) {
+  Collected collected;
+  const auto cutoff = fs::file_time_type::clock::now() - grace;
+  // Removes `path` when `keep` (called under the lock) says no and it is older than the cutoff;
+  // its size when removed.
+  auto removeIfStale = [&](const fs::path& path, const auto& keep) -> std::optional<int64_t> {
+    std::lock_guard lock(mutex_);
+    if (keep()) return std::nullopt;
+    std::error_code ec;
+    const fs::file_time_type modified = fs::last_write_time(path, ec);
+    if (ec || modified > cutoff) return std::nullopt;
+    const int64_t size = int64_t(fs::file_size(path, ec));
+    if (ec || !fs::remove(path, ec)) {
+      if (ec) Logger("blobs")->warn("collect: remove {}: {}", path.string(), ec.message());
+      return std::nullopt;
+    }
+    return size;
+  };
+  std::error_code ec;
+  for (const auto& dir : fs::directory_iterator(blobsDir_, ec)) {
+    std::error_code dirError;
+    for (const auto& entry : fs::directory_iterator(dir.path(), dirError)) {
+      const std::string hash = entry.path().filename().string();
+      if (std::optional<int64_t> size =
+              removeIfStale(entry.path(), [&] { return live.count(hash) > 0; })) {
+        ++collected.blobs;
+        collected.blobBytes += *size;
+      }
+    }
+  }
+  for (const auto& entry : fs::directory_iterator(uploadsDir_, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (std::optional<int64_t> size =
+            removeIfStale(entry.path(), [&] { return openUploads_.count(name) > 0; })) {
+      ++collected.partials;
+      collected.partialBytes += *size;
+    }
+  }
+  return collected;
 }
 
 }  // namespace probebake::server

@@ -19,6 +19,7 @@
 // open at a time (a second one gets ABORTED).
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -109,8 +110,14 @@ class BlobStore {
 
   // True when the blob is stored with the digest's size.
   bool Contains(const v1::Digest& digest) const;
-  // The digests not stored, in order, without duplicates (digests must be valid).
-  std::vector<v1::Digest> FindMissing(const std::vector<v1::Digest>& digests) const;
+  // Contains, and when stored marks the blob as used now (its file's modification time), so a
+  // collection within its grace period keeps it even while no job refers to it yet. For every
+  // check a client or a new job relies on: FindMissing's hits, a new job's inputs, a cache hit's
+  // volume.
+  bool Touch(const v1::Digest& digest);
+  // The digests not stored, in order, without duplicates (digests must be valid); the stored
+  // ones are touched.
+  std::vector<v1::Digest> FindMissing(const std::vector<v1::Digest>& digests);
 
   // Bytes held for an upload of `digest`: its size when stored, the partial size otherwise, synced
   // to disk before this returns (an error when the sync fails).
@@ -133,6 +140,17 @@ class BlobStore {
   // A scratch folder on the store's file system for files later imported.
   const std::filesystem::path& tmpDir() const { return tmpDir_; }
 
+  // What Collect removed.
+  struct Collected {
+    int64_t blobs = 0, blobBytes = 0;
+    int64_t partials = 0, partialBytes = 0;  // partial uploads
+  };
+  // Removes every stored blob whose hash is not in `live` and that was neither stored nor touched
+  // within `grace`, and every partial upload neither open nor written to within `grace`. Each
+  // file's check and removal is atomic with Touch and with storing a blob, so a blob touched (or
+  // stored again) during a collection stays. Files that cannot be removed are logged and left.
+  Collected Collect(const std::set<std::string>& live, std::chrono::seconds grace);
+
  private:
   friend class BlobUpload;
   BlobStore(std::filesystem::path blobsDir, std::filesystem::path uploadsDir,
@@ -145,6 +163,7 @@ class BlobStore {
 
   std::filesystem::path blobsDir_, uploadsDir_, tmpDir_;
   int64_t maxBlobBytes_;
+  // Guards openUploads_, and makes Touch, Publish and Collect's removals atomic with each other.
   mutable std::mutex mutex_;
   std::set<std::string> openUploads_;  // PartialPath names of open uploads
 };

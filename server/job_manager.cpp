@@ -191,8 +191,7 @@ absl::Status JobManager::ValidateForServer(const v1::JobSpec& spec) const {
 
   std::vector<std::string> missing;
   auto check = [&](const v1::Digest& digest, const std::string& field) {
-    if (!blobs_->Contains(digest))
-      missing.push_back(absl::StrCat(field, " ", DigestString(digest)));
+    if (!blobs_->Touch(digest)) missing.push_back(absl::StrCat(field, " ", DigestString(digest)));
   };
   for (int i = 0; i < spec.scene().meshes_size(); ++i)
     if (spec.scene().meshes(i).has_blob())
@@ -281,7 +280,7 @@ absl::StatusOr<v1::BakeJob> JobManager::CreateJob(const v1::CreateBakeJobRequest
   std::optional<v1::BakeJobResult> cached;
   if (!request.skip_cache()) {
     PB_ASSIGN_OR_RETURN(cached, store_->GetCached(built.jobDigest));
-    if (cached && !blobs_->Contains(cached->volume())) {
+    if (cached && !blobs_->Touch(cached->volume())) {
       Logger("jobs")->warn("result cache entry {} refers to missing volume {}; dropped",
                            built.jobDigest, DigestString(cached->volume()));
       PB_RETURN_IF_ERROR(store_->DeleteCached(built.jobDigest));

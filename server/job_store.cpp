@@ -284,6 +284,38 @@ absl::StatusOr<bool> JobStore::Delete(const std::string& name) {
   return sqlite3_changes(db_) > 0;
 }
 
+absl::Status JobStore::ForEachJob(
+    const std::function<void(const v1::BakeJob& record, const v1::JobSpec& spec)>& visit) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT seq, record, spec FROM jobs ORDER BY seq");
+  PB_RETURN_IF_ERROR(s.status());
+  while (true) {
+    PB_ASSIGN_OR_RETURN(bool row, s.Step());
+    if (!row) return absl::OkStatus();
+    PB_ASSIGN_OR_RETURN(StoredJob job, RowToJob(s.Int(0), s.Blob(1)));
+    v1::JobSpec spec;
+    if (!spec.ParseFromString(s.Blob(2)))
+      return absl::DataLossError(absl::StrCat(job.record.name(), ": unreadable job spec"));
+    visit(job.record, spec);
+  }
+}
+
+absl::StatusOr<std::vector<std::pair<std::string, v1::BakeJobResult>>> JobStore::ListCached() {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT job_digest, result FROM result_cache ORDER BY job_digest");
+  PB_RETURN_IF_ERROR(s.status());
+  std::vector<std::pair<std::string, v1::BakeJobResult>> entries;
+  while (true) {
+    PB_ASSIGN_OR_RETURN(bool row, s.Step());
+    if (!row) return entries;
+    std::string jobDigest = s.Blob(0);
+    v1::BakeJobResult result;
+    if (!result.ParseFromString(s.Blob(1)))
+      return absl::DataLossError(absl::StrCat("result cache ", jobDigest, ": unreadable entry"));
+    entries.emplace_back(std::move(jobDigest), std::move(result));
+  }
+}
+
 absl::StatusOr<std::optional<v1::BakeJobResult>> JobStore::GetCached(const std::string& jobDigest) {
   std::lock_guard lock(mutex_);
   Statement s(db_, "SELECT result FROM result_cache WHERE job_digest = ?");

@@ -52,7 +52,14 @@ class JobStore {
   // False when there was no such job.
   absl::StatusOr<bool> Delete(const std::string& name);
 
+  // Calls `visit` with every job's record and spec, in seq order (the store is locked meanwhile:
+  // `visit` must not call it).
+  absl::Status ForEachJob(
+      const std::function<void(const v1::BakeJob& record, const v1::JobSpec& spec)>& visit);
+
   absl::StatusOr<std::optional<v1::BakeJobResult>> GetCached(const std::string& jobDigest);
+  // Every result-cache entry: (job digest, result).
+  absl::StatusOr<std::vector<std::pair<std::string, v1::BakeJobResult>>> ListCached();
   absl::Status PutCached(const std::string& jobDigest, const v1::BakeJobResult& result);
   absl::Status DeleteCached(const std::string& jobDigest);
 

@@ -10,6 +10,7 @@
 #include <signal.h>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -107,6 +108,16 @@ int main(int argc, char** argv) {
                  "Seconds between checkpoints of a running bake")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  double blobGraceHours = 24, gcIntervalMinutes = 60;
+  app.add_option("--blob-grace-hours", blobGraceHours,
+                 "Hours a blob no job refers to (a deleted job's volume or inputs, an upload no "
+                 "job used) or an abandoned partial upload is kept after its last use")
+      ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str();
+  app.add_option("--gc-interval-minutes", gcIntervalMinutes,
+                 "Minutes between collections of such files (0: never)")
+      ->check(CLI::Range(0.0, 1e6))
+      ->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -120,6 +131,8 @@ int main(int argc, char** argv) {
   }
   probebake::SetLogLevel(spdlog::level::from_str(logLevel));
   options.dataDir = dataDir;
+  options.gc.grace = std::chrono::seconds(std::llround(blobGraceHours * 3600));
+  options.gc.interval = std::chrono::seconds(std::llround(gcIntervalMinutes * 60));
   options.tokenFile = tokenFile;
   options.tlsCert = tlsCert;
   options.tlsKey = tlsKey;

@@ -18,6 +18,7 @@
 #include "server/auth.h"
 #include "server/blob_store.h"
 #include "server/file_util.h"
+#include "server/garbage_collector.h"
 #include "server/job_manager.h"
 #include "server/job_store.h"
 #include "server/services.h"
@@ -123,6 +124,8 @@ absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
     s->jobs_->Shutdown();
     return absl::UnavailableError(absl::StrCat("cannot listen on ", options.listen));
   }
+  s->gc_ = std::make_unique<GarbageCollector>(s->store_.get(), s->blobs_.get(), options.gc);
+  s->gc_->Start();
   Logger("server")->info("probebake-server listening on {} (port {}), data {}, {}{}",
                          options.listen, s->port_, options.dataDir.string(),
                          s->auth_->enabled() ? "token auth" : "no auth",
@@ -142,6 +145,7 @@ void ProbebakeServer::Shutdown() {
     if (auto* health = server_->GetHealthCheckService()) health->SetServingStatus(false);
   }
   Logger("server")->info("draining: health NOT_SERVING, new jobs refused");
+  if (gc_) gc_->Stop();
   if (jobs_) jobs_->Shutdown();
   if (server_) {
     // Calls in flight (uploads, downloads, a CreateBakeJob loading assets) get up to 2 s to
@@ -159,6 +163,7 @@ void ProbebakeServer::Shutdown() {
   bakeJobs_.reset();
   content_.reset();
   capabilities_.reset();
+  gc_.reset();
   jobs_.reset();
   store_.reset();  // closing checkpoints the WAL into the database file
   blobs_.reset();

@@ -11,6 +11,7 @@
 #include "absl/status/statusor.h"
 #include "probebake/job/limits.h"
 #include "server/bake_backend.h"
+#include "server/garbage_collector.h"
 
 namespace grpc {
 class Server;
@@ -42,6 +43,7 @@ struct ServerOptions {
   double progressIntervalSeconds = 0.25;
   int64_t chunkBytes = int64_t(1) << 20;
   int maxMessageBytes = 4 << 20;
+  GcConfig gc;  // what the data folder keeps, and how often it is collected
 };
 
 // Makes the backend once the blob store exists (ProductionBackend in the real server).
@@ -57,6 +59,8 @@ class ProbebakeServer {
   int port() const { return port_; }
   // The job manager (for tests and diagnostics).
   JobManager& jobs() { return *jobs_; }
+  // The data folder's garbage collector (for tests and diagnostics).
+  GarbageCollector& gc() { return *gc_; }
   // Graceful stop: health NOT_SERVING, new jobs UNAVAILABLE, running jobs cancelled and requeued
   // with their checkpoints, watchers told UNAVAILABLE, in-flight calls given a moment, the job
   // store closed. Idempotent.
@@ -70,6 +74,7 @@ class ProbebakeServer {
   std::unique_ptr<BlobStore> blobs_;
   std::unique_ptr<JobStore> store_;
   std::unique_ptr<JobManager> jobs_;
+  std::unique_ptr<GarbageCollector> gc_;
   std::shared_ptr<const TokenAuth> auth_;
   std::shared_ptr<CallCounter> calls_;
   std::unique_ptr<CapabilitiesService> capabilities_;

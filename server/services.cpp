@@ -188,7 +188,7 @@ class WriteBlobReactor final : public grpc::ServerReadReactor<v1::WriteBlobReque
         return FieldError("digest", "required in the first WriteBlobRequest");
       digest_ = request_.digest();
       PB_RETURN_IF_ERROR(ValidateDigest(digest_, "digest"));
-      if (blobs_->Contains(digest_)) {
+      if (blobs_->Touch(digest_)) {
         response_->set_committed_size(digest_.size_bytes());
         response_->set_already_present(true);
         finished_ = true;

@@ -78,6 +78,8 @@ void TestServer::Start() {
   o.threadsPerJob = 1;
   o.limits = options_.limits;
   o.checkpointIntervalSeconds = options_.checkpointIntervalSeconds;
+  o.gc.grace = options_.blobGrace;
+  o.gc.interval = std::chrono::seconds(0);
   if (!options_.token.empty()) {
     o.tokenFile = dataDir_.parent_path() / "token";
     std::filesystem::create_directories(dataDir_.parent_path());

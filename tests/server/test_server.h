@@ -40,6 +40,8 @@ struct TestServerOptions {
   // Called before each volume write; a status other than OK fails that write with it (a full
   // disk: RESOURCE_EXHAUSTED). Unset: writes succeed.
   std::function<absl::Status()> volumeWriteFault;
+  // The garbage collector's; no periodic collection (tests call server().gc().CollectNow()).
+  std::chrono::seconds blobGrace{std::chrono::hours(1)};
 };
 
 class TestServer {
