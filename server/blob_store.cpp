@@ -307,6 +307,9 @@ absl::Status BlobStore::Publish(const fs::path& from, const std::string& hash) {
   {
     std::lock_guard lock(mutex_);  // not between a collection's check of the name and its removal
     if (::rename(from.c_str(), target.c_str()) != 0) return ErrnoError("rename", from, errno);
+    // Stored now, whenever its bytes were written: what a collection under way compares with.
+    if (::utimensat(AT_FDCWD, target.c_str(), nullptr, 0) != 0)
+      Logger("blobs")->debug("touch {}: {}", target.string(), std::strerror(errno));
   }
   PB_RETURN_IF_ERROR(FsyncDir(target.parent_path()));
   Logger("blobs")->debug("stored blob {}", hash);
@@ -361,9 +364,9 @@ absl::StatusOr<v1::Digest> BlobStore::ImportFile(const fs::path& path) {
 }
 
 BlobStore::Collected BlobStore::Collect(const std::set<std::string>& live,
-                                        std::chrono::seconds grace) {
+                                        fs::file_time_type unusedSince) {
   Collected collected;
-  const auto cutoff = fs::file_time_type::clock::now() - grace;
+  const fs::file_time_type cutoff = unusedSince;
   // Removes `path` when `keep` (called under the lock) says no and it is older than the cutoff;
   // its size when removed.
   auto removeIfStale = [&](const fs::path& path, const auto& keep) -> std::optional<int64_t> {

@@ -19,7 +19,6 @@
 // open at a time (a second one gets ABORTED).
 #pragma once
 
-#include <chrono>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -146,10 +145,10 @@ class BlobStore {
     int64_t partials = 0, partialBytes = 0;  // partial uploads
   };
   // Removes every stored blob whose hash is not in `live` and that was neither stored nor touched
-  // within `grace`, and every partial upload neither open nor written to within `grace`. Each
+  // since `unusedSince`, and every partial upload neither open nor written to since then. Each
   // file's check and removal is atomic with Touch and with storing a blob, so a blob touched (or
   // stored again) during a collection stays. Files that cannot be removed are logged and left.
-  Collected Collect(const std::set<std::string>& live, std::chrono::seconds grace);
+  Collected Collect(const std::set<std::string>& live, std::filesystem::file_time_type unusedSince);
 
  private:
   friend class BlobUpload;

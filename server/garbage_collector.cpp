@@ -1,9 +1,12 @@
 #include "server/garbage_collector.h"
 
+#include <algorithm>
+
 #include <google/protobuf/descriptor.h>
 #include <google/protobuf/message.h>
 
 #include "absl/strings/str_format.h"
+#include "probebake/base/check.h"
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
 #include "server/blob_store.h"
@@ -49,8 +52,11 @@ std::set<std::string> BlobsOfSpec(const v1::JobSpec& spec) {
   return hashes;
 }
 
-GarbageCollector::GarbageCollector(JobStore* jobs, BlobStore* blobs, GcConfig config)
-    : jobs_(jobs), blobs_(blobs), config_(config) {}
+GarbageCollector::GarbageCollector(JobStore* jobs, BlobStore* blobs, PendingBlobs pending,
+                                   GcConfig config)
+    : jobs_(jobs), blobs_(blobs), pending_(std::move(pending)), config_(config) {
+  PB_CHECK(config_.grace >= GcConfig::kMinGrace);
+}
 
 GarbageCollector::~GarbageCollector() {
   Stop();
@@ -83,16 +89,20 @@ void GarbageCollector::Loop() {
 absl::StatusOr<GcReport> GarbageCollector::CollectNow() {
   std::lock_guard collecting(collecting_);
   GcReport report;
-  // The referenced set is read before any file is looked at: a job created after this refers
-  // only to blobs it touched, which the grace period keeps.
-  std::set<std::string> live;
+  // In this order: the blobs pending a reference, then the references. A volume whose job's end
+  // is stored in between is among the references; one imported after the first step is newer
+  // than `since`, as is every blob stored or touched from then on (a new job's inputs, a cache
+  // hit), so none of them is removed.
+  std::filesystem::file_time_type since;
+  std::set<std::string> live = pending_(&since);
   PB_RETURN_IF_ERROR(jobs_->ForEachJob([&](const v1::BakeJob& record, const v1::JobSpec& spec) {
     live.merge(BlobsOfSpec(spec));
     if (record.has_result() && !record.result().volume().hash().empty())
       live.insert(record.result().volume().hash());
   }));
   report.liveBlobs = int64_t(live.size());
-  const BlobStore::Collected collected = blobs_->Collect(live, config_.grace);
+  const BlobStore::Collected collected = blobs_->Collect(
+      live, std::min(since, std::filesystem::file_time_type::clock::now() - config_.grace));
   report.blobs = collected.blobs;
   report.blobBytes = collected.blobBytes;
   report.partials = collected.partials;

@@ -13,6 +13,8 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <filesystem>
+#include <functional>
 #include <mutex>
 #include <set>
 #include <string>
@@ -27,8 +29,11 @@ class BlobStore;
 class JobStore;
 
 struct GcConfig {
-  // How long an unreferenced blob or a partial upload is kept after its last use.
+  // How long an unreferenced blob or a partial upload is kept after its last use; at least
+  // kMinGrace (it also covers the moments between a client's FindMissingBlobs or a cache hit and
+  // the job that then refers to the blob).
   std::chrono::seconds grace{std::chrono::hours(24)};
+  static constexpr std::chrono::seconds kMinGrace{60};
   // How often the server collects by itself; 0: never (CollectNow only).
   std::chrono::seconds interval{std::chrono::hours(1)};
 };
@@ -43,10 +48,14 @@ struct GcReport {
 // The hashes of every Digest in `spec` (each blob a job reads).
 std::set<std::string> BlobsOfSpec(const v1::JobSpec& spec);
 
+// Blobs in use that no job record refers to yet, and the time since which a blob stored or
+// touched may be one of them (JobManager::VolumesNotYetReferenced).
+using PendingBlobs = std::function<std::set<std::string>(std::filesystem::file_time_type* since)>;
+
 class GarbageCollector {
  public:
-  // The stores must outlive the collector.
-  GarbageCollector(JobStore* jobs, BlobStore* blobs, GcConfig config);
+  // The stores must outlive the collector, as must what `pending` calls.
+  GarbageCollector(JobStore* jobs, BlobStore* blobs, PendingBlobs pending, GcConfig config);
   ~GarbageCollector();  // Stop()
   GarbageCollector(const GarbageCollector&) = delete;
   GarbageCollector& operator=(const GarbageCollector&) = delete;
@@ -64,6 +73,7 @@ class GarbageCollector {
 
   JobStore* jobs_;
   BlobStore* blobs_;
+  PendingBlobs pending_;
   GcConfig config_;
   std::mutex collecting_;  // one collection at a time
   std::mutex mutex_;

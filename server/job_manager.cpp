@@ -661,9 +661,23 @@ JobManager::Outcome JobManager::Execute(RunningJob& job) {
   std::filesystem::path tmp =
       blobs_->tmpDir() / absl::StrCat(job.name.substr(kNamePrefix.size()), ".vdb");
   const VolumeMetadata meta = VolumeMetadataFor(*built);
-  auto store = [&]() -> absl::StatusOr<v1::Digest> {
+  auto write = [&]() -> absl::StatusOr<v1::Digest> {
     PB_RETURN_IF_ERROR(backend_.writeVolume(tmp.string(), *volume, meta));
     return blobs_->ImportFile(tmp);
+  };
+  // Known to the garbage collector from before the import until Finish has stored the job's
+  // end, which refers to the volume.
+  auto store = [&]() -> absl::StatusOr<v1::Digest> {
+    std::multiset<std::filesystem::file_time_type>::iterator started;
+    {
+      std::lock_guard lock(volumesMutex_);
+      started = importsUnderWay_.insert(std::filesystem::file_time_type::clock::now());
+    }
+    absl::StatusOr<v1::Digest> stored = write();
+    std::lock_guard lock(volumesMutex_);
+    importsUnderWay_.erase(started);
+    if (stored.ok()) volumesNotYetReferenced_.insert(stored->hash());
+    return stored;
   };
   // A full disk must not cost the bake (hours, on a farm): the volume stays in memory and its
   // write is retried with backoff, the job RUNNING with progress.waiting saying why, until space
@@ -734,6 +748,14 @@ void JobManager::OnProgress(RunningJob& job, const BakeProgress& progress) {
   NotifyLocked(job.record);
 }
 
+std::set<std::string> JobManager::VolumesNotYetReferenced(
+    std::filesystem::file_time_type* importsSince) {
+  std::lock_guard lock(volumesMutex_);
+  *importsSince = importsUnderWay_.empty() ? std::filesystem::file_time_type::clock::now()
+                                           : *importsUnderWay_.begin();
+  return {volumesNotYetReferenced_.begin(), volumesNotYetReferenced_.end()};
+}
+
 void JobManager::SetWaitingLocked(RunningJob& job, const std::string& why) {
   if (job.record.progress().waiting() == why) return;
   job.record.mutable_progress()->set_waiting(why);
@@ -788,6 +810,15 @@ void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
   // A state is announced only once stored: a client told SUCCEEDED or FAILED must find the job
   // so after a restart too. A store that cannot write (a full disk) is retried with backoff, the
   // job staying RUNNING meanwhile; at shutdown it stays RUNNING on disk and runs again.
+  // Once stored, the record refers to the volume; not stored (a shutdown), the job runs again
+  // and the volume is garbage. Either way the collector need not hold it for this job any more,
+  // and no one is told SUCCEEDED before.
+  auto releaseVolume = [&] {
+    if (outcome.state != v1::BakeJob::SUCCEEDED) return;
+    std::lock_guard lock(volumesMutex_);
+    auto it = volumesNotYetReferenced_.find(outcome.result.volume().hash());
+    if (it != volumesNotYetReferenced_.end()) volumesNotYetReferenced_.erase(it);
+  };
   bool stored = false;
   int tries = 0;
   for (auto backoff = kStoreRetryFirst;; backoff = std::min(2 * backoff, kStoreRetryMax)) {
@@ -803,6 +834,7 @@ void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
     });
     if (committed.ok()) {
       stored = true;
+      releaseVolume();
       job.record = record;
       NotifyLocked(job.record);
       if (tries > 1)
@@ -811,6 +843,7 @@ void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
       break;
     }
     if (stopping_) {
+      releaseVolume();
       Logger("jobs")->error("{}: {} not stored ({}); it runs again after the restart", job.name,
                             v1::BakeJob::State_Name(outcome.state),
                             std::string(committed.message()));

@@ -21,6 +21,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -112,6 +113,12 @@ class JobManager {
 
   const JobManagerConfig& config() const { return config_; }
 
+  // For the garbage collector: the result volumes stored as blobs whose jobs' records do not
+  // refer to them yet (a job between importing its volume and storing its end), and the start of
+  // the earliest volume import still under way (now when none is). A blob stored or touched
+  // since then is newer than it (BlobStore stamps a blob's time when it is stored).
+  std::set<std::string> VolumesNotYetReferenced(std::filesystem::file_time_type* importsSince);
+
  private:
   enum class CancelReason : int { kNone = 0, kUser = 1, kShutdown = 2 };
   struct RunningJob {
@@ -163,6 +170,11 @@ class JobManager {
   // Running jobs waiting out a backoff (the store or the volume cannot be written): a job was
   // cancelled, or stopping. Apart from wake_, whose notify_one must reach the dispatcher.
   std::condition_variable backoff_;
+  // VolumesNotYetReferenced's: imports under way (their start times) and volumes imported whose
+  // jobs' ends are not stored yet.
+  std::mutex volumesMutex_;
+  std::multiset<std::filesystem::file_time_type> importsUnderWay_;
+  std::multiset<std::string> volumesNotYetReferenced_;
   std::vector<std::string> queue_;  // names of QUEUED jobs, creation order
   std::map<std::string, std::shared_ptr<RunningJob>> running_;
   std::multimap<std::string, std::weak_ptr<JobSubscriber>> subscribers_;

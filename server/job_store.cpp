@@ -286,17 +286,30 @@ absl::StatusOr<bool> JobStore::Delete(const std::string& name) {
 
 absl::Status JobStore::ForEachJob(
     const std::function<void(const v1::BakeJob& record, const v1::JobSpec& spec)>& visit) {
-  std::lock_guard lock(mutex_);
-  Statement s(db_, "SELECT seq, record, spec FROM jobs ORDER BY seq");
-  PB_RETURN_IF_ERROR(s.status());
+  // In pages, the store unlocked between them: specs may be megabytes each.
+  constexpr int64_t kPage = 64;
+  int64_t after = 0;
   while (true) {
-    PB_ASSIGN_OR_RETURN(bool row, s.Step());
-    if (!row) return absl::OkStatus();
-    PB_ASSIGN_OR_RETURN(StoredJob job, RowToJob(s.Int(0), s.Blob(1)));
-    v1::JobSpec spec;
-    if (!spec.ParseFromString(s.Blob(2)))
-      return absl::DataLossError(absl::StrCat(job.record.name(), ": unreadable job spec"));
-    visit(job.record, spec);
+    std::vector<std::pair<StoredJob, v1::JobSpec>> page;
+    {
+      std::lock_guard lock(mutex_);
+      Statement s(db_, "SELECT seq, record, spec FROM jobs WHERE seq > ? ORDER BY seq LIMIT ?");
+      PB_RETURN_IF_ERROR(s.status());
+      s.Bind(1, after);
+      s.Bind(2, kPage);
+      while (true) {
+        PB_ASSIGN_OR_RETURN(bool row, s.Step());
+        if (!row) break;
+        PB_ASSIGN_OR_RETURN(StoredJob job, RowToJob(s.Int(0), s.Blob(1)));
+        v1::JobSpec spec;
+        if (!spec.ParseFromString(s.Blob(2)))
+          return absl::DataLossError(absl::StrCat(job.record.name(), ": unreadable job spec"));
+        page.emplace_back(std::move(job), std::move(spec));
+      }
+    }
+    for (const auto& [job, spec] : page) visit(job.record, spec);
+    if (int64_t(page.size()) < kPage) return absl::OkStatus();
+    after = page.back().first.seq;
   }
 }
 

@@ -52,8 +52,8 @@ class JobStore {
   // False when there was no such job.
   absl::StatusOr<bool> Delete(const std::string& name);
 
-  // Calls `visit` with every job's record and spec, in seq order (the store is locked meanwhile:
-  // `visit` must not call it).
+  // Calls `visit` with every job's record and spec, in seq order, reading them in pages (a job
+  // added or deleted meanwhile may or may not be visited).
   absl::Status ForEachJob(
       const std::function<void(const v1::BakeJob& record, const v1::JobSpec& spec)>& visit);
 

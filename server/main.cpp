@@ -111,8 +111,9 @@ int main(int argc, char** argv) {
   double blobGraceHours = 24, gcIntervalMinutes = 60;
   app.add_option("--blob-grace-hours", blobGraceHours,
                  "Hours a blob no job refers to (a deleted job's volume or inputs, an upload no "
-                 "job used) or an abandoned partial upload is kept after its last use")
-      ->check(CLI::Range(0.0, 1e6))
+                 "job used) or an abandoned partial upload is kept after its last use (at "
+                 "least 1/60: a minute)")
+      ->check(CLI::Range(1.0 / 60, 1e6))
       ->capture_default_str();
   app.add_option("--gc-interval-minutes", gcIntervalMinutes,
                  "Minutes between collections of such files (0: never)")

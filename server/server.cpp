@@ -47,6 +47,10 @@ absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
   if (options.dataDir.empty()) return absl::InvalidArgumentError("--data-dir is required");
   if (options.tlsCert.empty() != options.tlsKey.empty())
     return absl::InvalidArgumentError("--tls-cert and --tls-key go together");
+  if (options.gc.grace < GcConfig::kMinGrace)
+    return absl::InvalidArgumentError(absl::StrCat("--blob-grace-hours: at least ",
+                                                   GcConfig::kMinGrace.count(), " s (",
+                                                   GcConfig::kMinGrace.count() / 3600.0, " h)"));
   std::error_code ec;
   std::filesystem::create_directories(options.dataDir, ec);
   if (ec)
@@ -124,7 +128,12 @@ absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
     s->jobs_->Shutdown();
     return absl::UnavailableError(absl::StrCat("cannot listen on ", options.listen));
   }
-  s->gc_ = std::make_unique<GarbageCollector>(s->store_.get(), s->blobs_.get(), options.gc);
+  s->gc_ = std::make_unique<GarbageCollector>(
+      s->store_.get(), s->blobs_.get(),
+      [jobs = s->jobs_.get()](std::filesystem::file_time_type* since) {
+        return jobs->VolumesNotYetReferenced(since);
+      },
+      options.gc);
   s->gc_->Start();
   Logger("server")->info("probebake-server listening on {} (port {}), data {}, {}{}",
                          options.listen, s->port_, options.dataDir.string(),

@@ -7,6 +7,8 @@
 
 #include <chrono>
 #include <filesystem>
+#include <future>
+#include <memory>
 #include <thread>
 
 #include "probebake/job/digest.h"
@@ -117,6 +119,47 @@ TEST(GarbageCollection, AVolumeStaysWhileAnyJobRefersToIt) {
   ExpectFakeVolume(s.Download(second.result().volume()), 3, 42);
   EXPECT_TRUE(s.Create(SmallJob(3, 42)).result().cached_result());
   EXPECT_EQ(s.bakeStats().bakes.load(), 1);
+}
+
+TEST(GarbageCollection, AVolumeWhoseJobsEndIsNotStoredYetStays) {
+  // The job store cannot be written as a bake ends (another connection takes its write lock
+  // just before the volume is written), so the imported volume waits for its job's end to be
+  // stored, referred to by no record. A collection meanwhile must keep it, however old it looks.
+  // (It took it, and the job then SUCCEEDED with a volume that was gone.)
+  TempDir dir;
+  const fs::path dataDir = dir.path() / "data";
+  std::unique_ptr<StoreWriteLock> lock;
+  std::promise<void> locked;
+  TestServerOptions options;
+  options.volumeWriteFault = [&] {
+    if (!lock) {
+      lock = std::make_unique<StoreWriteLock>(dataDir);
+      locked.set_value();
+    }
+    return absl::OkStatus();
+  };
+  TestServer s(options, dataDir);
+  const v1::BakeJob created = s.Create(SmallJob(4, 43));
+  auto watched = std::async(std::launch::async, [&] { return s.WaitFinal(created.name()); });
+  ASSERT_EQ(locked.get_future().wait_for(std::chrono::seconds(20)), std::future_status::ready);
+  fs::path volumeFile;  // the only blob: SmallJob has no input files
+  for (int i = 0; i < 2000 && volumeFile.empty(); ++i) {
+    std::error_code ec;
+    for (const auto& entry : fs::recursive_directory_iterator(dataDir / "blobs", ec))
+      if (entry.is_regular_file()) volumeFile = entry.path();
+    if (volumeFile.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_FALSE(volumeFile.empty());
+  Age(volumeFile, 2);
+  const server::GcReport report = Collect(s);
+  EXPECT_EQ(report.blobs, 0);
+  EXPECT_EQ(report.liveBlobs, 1);
+  EXPECT_TRUE(fs::exists(volumeFile));
+  lock->Release();
+  const v1::BakeJob final = watched.get();
+  ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
+  EXPECT_EQ(final.result().volume().hash(), volumeFile.filename().string());
+  ExpectFakeVolume(s.Download(final.result().volume()), 4, 43);
 }
 
 TEST(GarbageCollection, TheGracePeriodKeepsBlobsInUse) {

@@ -12,7 +12,6 @@
 #include <thread>
 
 #include <grpcpp/generic/generic_stub.h>
-#include <sqlite3.h>
 
 #include "absl/strings/match.h"
 #include "probebake/job/digest.h"
@@ -572,31 +571,6 @@ TEST(Service, GracefulRestartResumesFromTheCheckpointWithTheSameBits) {
   }
   EXPECT_GE(resumedMessages, 1);
 }
-
-// Holds the server's job store write-locked from another SQLite connection until Release: the
-// server's writes wait out its 5 s busy timeout and fail, as they do on a full disk.
-class StoreWriteLock {
- public:
-  explicit StoreWriteLock(const std::filesystem::path& dataDir) {
-    EXPECT_EQ(sqlite3_open((dataDir / "jobs.sqlite").c_str(), &db_), SQLITE_OK);
-    sqlite3_busy_timeout(db_, 10000);  // the server may be writing progress at this moment
-    locked_ = sqlite3_exec(db_, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK;
-    EXPECT_TRUE(locked_);
-  }
-  ~StoreWriteLock() { Release(); }
-  void Release() {
-    if (locked_) {
-      EXPECT_EQ(sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr), SQLITE_OK);
-    }
-    locked_ = false;
-    sqlite3_close(db_);
-    db_ = nullptr;
-  }
-
- private:
-  sqlite3* db_ = nullptr;
-  bool locked_ = false;
-};
 
 TEST(Service, AJobsEndIsAnnouncedOnlyOnceStored) {
   // The job store cannot be written when a bake ends: another connection holds SQLite's write

@@ -11,6 +11,22 @@
 
 namespace probebake::testing {
 
+StoreWriteLock::StoreWriteLock(const std::filesystem::path& dataDir) {
+  EXPECT_EQ(sqlite3_open((dataDir / "jobs.sqlite").c_str(), &db_), SQLITE_OK);
+  sqlite3_busy_timeout(db_, 10000);  // the server may be writing progress at this moment
+  locked_ = sqlite3_exec(db_, "BEGIN IMMEDIATE", nullptr, nullptr, nullptr) == SQLITE_OK;
+  EXPECT_TRUE(locked_);
+}
+
+void StoreWriteLock::Release() {
+  if (locked_) {
+    EXPECT_EQ(sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr), SQLITE_OK);
+  }
+  locked_ = false;
+  sqlite3_close(db_);
+  db_ = nullptr;
+}
+
 v1::JobSpec SmallJob(int probes, uint64_t seed) {
   std::string json = R"({
     "scene": {

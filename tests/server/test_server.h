@@ -11,6 +11,7 @@
 #include <string>
 
 #include <grpcpp/grpcpp.h>
+#include <sqlite3.h>
 
 #include "fake_backend.h"
 #include "probebake/v1/service.grpc.pb.h"
@@ -42,6 +43,21 @@ struct TestServerOptions {
   std::function<absl::Status()> volumeWriteFault;
   // The garbage collector's; no periodic collection (tests call server().gc().CollectNow()).
   std::chrono::seconds blobGrace{std::chrono::hours(1)};
+};
+
+// Holds the server's job store write-locked from another SQLite connection until Release: the
+// server's writes wait out its 5 s busy timeout and fail, as they do on a full disk. Reads go on.
+class StoreWriteLock {
+ public:
+  explicit StoreWriteLock(const std::filesystem::path& dataDir);
+  ~StoreWriteLock() { Release(); }
+  StoreWriteLock(const StoreWriteLock&) = delete;
+  StoreWriteLock& operator=(const StoreWriteLock&) = delete;
+  void Release();
+
+ private:
+  sqlite3* db_ = nullptr;
+  bool locked_ = false;
 };
 
 class TestServer {
