@@ -390,7 +390,8 @@ absl::StatusOr<v1::BakeJob> JobManager::CancelJob(const std::string& name) {
   PB_RETURN_IF_ERROR(CheckName(name).status());
   std::lock_guard lock(mutex_);
   auto running = running_.find(name);
-  if (running != running_.end()) {
+  // A job whose end is stored (and announced) is finished, though its worker is still leaving.
+  if (running != running_.end() && !IsFinal(running->second->record.state())) {
     RunningJob& job = *running->second;
     if (!job.record.cancel_requested()) {
       // Stored first: a cancel the store refuses (a full disk) is an error, and neither stops
@@ -432,7 +433,9 @@ absl::StatusOr<v1::BakeJob> JobManager::CancelJob(const std::string& name) {
 absl::Status JobManager::DeleteJob(const std::string& name) {
   PB_RETURN_IF_ERROR(CheckName(name).status());
   std::lock_guard lock(mutex_);
-  if (running_.count(name))
+  // A job whose end is stored (and announced) is finished, though its worker is still leaving.
+  if (auto running = running_.find(name);
+      running != running_.end() && !IsFinal(running->second->record.state()))
     return absl::FailedPreconditionError(
         absl::StrCat(name, ": the job is running; cancel it first"));
   PB_ASSIGN_OR_RETURN(bool existed, store_->Delete(name));

@@ -627,6 +627,32 @@ TEST(Service, ACancelTheStoreRefusesChangesNothing) {
   EXPECT_FALSE(final.cancel_requested());
 }
 
+TEST(Service, AJobToldSucceededCanBeCancelledAndDeletedAtOnce) {
+  // The job's worker leaves after announcing the end: a client acting on SUCCEEDED at once got
+  // "the job is running; cancel it first" from DeleteBakeJob, and CancelBakeJob stored
+  // cancel_requested on the finished job. Repeated, since the window is short.
+  TestServerOptions options;
+  options.probeDelay = std::chrono::microseconds(100);
+  TestServer s(options);
+  for (int i = 0; i < 30; ++i) {
+    const v1::BakeJob final = s.WaitFinal(s.Create(SmallJob(1, 100 + i)).name());
+    ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED);
+    v1::CancelBakeJobRequest cancel;
+    cancel.set_name(final.name());
+    v1::BakeJob cancelled;
+    auto c1 = s.Context();
+    ASSERT_TRUE(s.Jobs()->CancelBakeJob(c1.get(), cancel, &cancelled).ok());
+    EXPECT_EQ(cancelled.state(), v1::BakeJob::SUCCEEDED);
+    EXPECT_FALSE(cancelled.cancel_requested()) << "iteration " << i;
+    v1::DeleteBakeJobRequest del;
+    del.set_name(final.name());
+    google::protobuf::Empty empty;
+    auto c2 = s.Context();
+    const grpc::Status deleted = s.Jobs()->DeleteBakeJob(c2.get(), del, &empty);
+    EXPECT_TRUE(deleted.ok()) << "iteration " << i << ": " << deleted.error_message();
+  }
+}
+
 // A volume write failing as on a full disk (what WriteProbeVolume returns for ENOSPC).
 absl::Status DiskFull() {
   return absl::ResourceExhaustedError(
