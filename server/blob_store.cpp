@@ -198,7 +198,7 @@ absl::StatusOr<std::unique_ptr<BlobStore>> BlobStore::Open(const fs::path& dataD
   for (const fs::path& dir : {blobs, uploads, tmp}) {
     std::error_code ec;
     fs::create_directories(dir, ec);
-    if (ec) return absl::InternalError(absl::StrCat("create ", dir.string(), ": ", ec.message()));
+    if (ec) return ErrnoError("create", dir, ec.value());
   }
   // Scratch files of an earlier run are garbage (results are imported before a job completes).
   std::error_code ec;
@@ -301,9 +301,7 @@ absl::Status BlobStore::Publish(const fs::path& from, const std::string& hash) {
   fs::path target = BlobPath(hash);
   std::error_code ec;
   fs::create_directories(target.parent_path(), ec);
-  if (ec)
-    return absl::InternalError(
-        absl::StrCat("create ", target.parent_path().string(), ": ", ec.message()));
+  if (ec) return ErrnoError("create", target.parent_path(), ec.value());  // ENOSPC: no inode
   {
     std::lock_guard lock(mutex_);  // not between a collection's check of the name and its removal
     if (::rename(from.c_str(), target.c_str()) != 0) return ErrnoError("rename", from, errno);

@@ -63,7 +63,13 @@ GarbageCollector::~GarbageCollector() {
 }
 
 void GarbageCollector::Start() {
-  if (config_.interval.count() <= 0 || thread_.joinable()) return;
+  if (config_.interval.count() <= 0) {
+    Logger("gc")->info("periodic collection off; unreferenced files are kept");
+    return;
+  }
+  if (thread_.joinable()) return;
+  Logger("gc")->info("collecting every {} s the files no job refers to and unused for {} s",
+                     config_.interval.count(), config_.grace.count());
   thread_ = std::thread([this] { Loop(); });
 }
 

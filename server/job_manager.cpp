@@ -10,6 +10,7 @@
 #include <google/protobuf/util/message_differencer.h>
 #include <google/protobuf/util/time_util.h>
 
+#include "absl/cleanup/cleanup.h"
 #include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
@@ -663,6 +664,11 @@ JobManager::Outcome JobManager::Execute(RunningJob& job) {
   std::vector<float>().swap(volume->autoWindowT);
   std::filesystem::path tmp =
       blobs_->tmpDir() / absl::StrCat(job.name.substr(kNamePrefix.size()), ".vdb");
+  // Gone however this ends (ImportFile consumes it when it succeeds).
+  absl::Cleanup removeTmp = [&tmp] {
+    std::error_code ec;
+    std::filesystem::remove(tmp, ec);
+  };
   const VolumeMetadata meta = VolumeMetadataFor(*built);
   auto write = [&]() -> absl::StatusOr<v1::Digest> {
     PB_RETURN_IF_ERROR(backend_.writeVolume(tmp.string(), *volume, meta));
@@ -855,6 +861,8 @@ void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
     Logger("jobs")->error("{}: {} not stored ({}); retrying in {} s", job.name,
                           v1::BakeJob::State_Name(outcome.state), std::string(committed.message()),
                           backoff.count());
+    // Watchers see why the job, its work done, stays RUNNING (the record stored clears it).
+    SetWaitingLocked(job, absl::StrCat("waiting to store the job's end: ", committed.message()));
     backoff_.wait_for(lock, backoff, [&] { return stopping_; });
   }
   if (stored) {

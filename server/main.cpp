@@ -134,6 +134,11 @@ int main(int argc, char** argv) {
   options.dataDir = dataDir;
   options.gc.grace = std::chrono::seconds(std::llround(blobGraceHours * 3600));
   options.gc.interval = std::chrono::seconds(std::llround(gcIntervalMinutes * 60));
+  if (gcIntervalMinutes > 0 && options.gc.interval.count() == 0) {
+    std::fprintf(stderr, "--gc-interval-minutes: %g is under a second; use 0 for never\n",
+                 gcIntervalMinutes);
+    return kExitUsage;
+  }
   options.tokenFile = tokenFile;
   options.tlsCert = tlsCert;
   options.tlsKey = tlsKey;

@@ -8,6 +8,7 @@
 #include <fstream>
 #include <future>
 #include <limits>
+#include <memory>
 #include <random>
 #include <thread>
 
@@ -573,25 +574,47 @@ TEST(Service, GracefulRestartResumesFromTheCheckpointWithTheSameBits) {
 }
 
 TEST(Service, AJobsEndIsAnnouncedOnlyOnceStored) {
-  // The job store cannot be written when a bake ends: another connection holds SQLite's write
-  // lock past the server's 5 s busy timeout, failing the write as a full disk does. The end is
-  // retried with the job RUNNING; watchers learn SUCCEEDED only once it is stored, and a restart
-  // finds it so. (It was announced SUCCEEDED at once while the store kept RUNNING, so the job ran
-  // again after a restart.)
-  TestServerOptions options;
-  options.probeDelay = std::chrono::milliseconds(50);
+  // The job store cannot be written when a bake ends: another connection takes SQLite's write
+  // lock just before the volume is written and holds it past the server's 5 s busy timeout,
+  // failing the write as a full disk does. The end is retried with the job RUNNING, its progress
+  // saying why; watchers learn SUCCEEDED only once it is stored, and a restart finds it so. (It
+  // was announced SUCCEEDED at once while the store kept RUNNING, so the job ran again after a
+  // restart.)
   TempDir dir;
-  TestServer s(options, dir.path() / "data");
+  const std::filesystem::path dataDir = dir.path() / "data";
+  std::unique_ptr<StoreWriteLock> lock;
+  std::promise<void> locked;
+  TestServerOptions options;
+  options.volumeWriteFault = [&] {
+    if (!lock) {
+      lock = std::make_unique<StoreWriteLock>(dataDir);
+      locked.set_value();
+    }
+    return absl::OkStatus();
+  };
+  TestServer s(options, dataDir);
   const v1::BakeJob created = s.Create(SmallJob(4, 21));
-  auto watched = std::async(std::launch::async, [&] { return s.WaitFinal(created.name()); });
-  StoreWriteLock lock(s.dataDir());
-  // The bake ends within 0.2 s; its end then waits out one busy timeout (5 s) and fails.
-  EXPECT_EQ(watched.wait_for(std::chrono::seconds(8)), std::future_status::timeout);
+  std::vector<v1::BakeJob> messages;
+  auto watched =
+      std::async(std::launch::async, [&] { return s.WaitFinal(created.name(), &messages); });
+  ASSERT_EQ(locked.get_future().wait_for(std::chrono::seconds(20)), std::future_status::ready);
+  // The end's first try waits out the busy timeout and fails; the job says so.
+  std::string waiting;
+  for (int i = 0; i < 2000 && waiting.empty(); ++i) {
+    waiting = s.Get(created.name()).progress().waiting();
+    if (waiting.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_TRUE(absl::StartsWith(waiting, "waiting to store the job's end: ")) << waiting;
+  EXPECT_EQ(watched.wait_for(std::chrono::seconds(0)), std::future_status::timeout);
   const auto released = steady_clock::now();
-  lock.Release();
+  lock->Release();
   const v1::BakeJob final = watched.get();
   EXPECT_GE(steady_clock::now(), released);
   ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
+  EXPECT_TRUE(std::all_of(messages.begin(), messages.end() - 1, [](const v1::BakeJob& m) {
+    return m.state() == v1::BakeJob::QUEUED || m.state() == v1::BakeJob::RUNNING;
+  }));
+  EXPECT_EQ(final.progress().waiting(), "");
   EXPECT_EQ(s.bakeStats().bakes.load(), 1);
   s.Restart();
   const v1::BakeJob stored = s.Get(created.name());
