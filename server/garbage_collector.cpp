@@ -88,6 +88,7 @@ void GarbageCollector::Loop() {
     lock.unlock();
     if (absl::StatusOr<GcReport> report = CollectNow(); !report.ok())
       Logger("gc")->warn("collection skipped: {}", std::string(report.status().message()));
+    if (after_) after_();
     lock.lock();
   }
 }

@@ -60,6 +60,9 @@ class GarbageCollector {
   GarbageCollector(const GarbageCollector&) = delete;
   GarbageCollector& operator=(const GarbageCollector&) = delete;
 
+  // Called after every periodic collection (before Start only), e.g. to take back disk space
+  // held in reserve once the collection freed some.
+  void SetAfterCollection(std::function<void()> after) { after_ = std::move(after); }
   // Collects every config.interval on a thread of its own (nothing when the interval is 0).
   void Start();
   // Ends that thread; a collection under way finishes first.
@@ -75,6 +78,7 @@ class GarbageCollector {
   BlobStore* blobs_;
   PendingBlobs pending_;
   GcConfig config_;
+  std::function<void()> after_;
   std::mutex collecting_;  // one collection at a time
   std::mutex mutex_;
   std::condition_variable wake_;

@@ -139,6 +139,37 @@ JobStore::~JobStore() {
   sqlite3_close(db_);
 }
 
+void JobStore::SetSpaceReclaimer(std::function<bool()> reclaim) {
+  std::lock_guard lock(mutex_);
+  reclaim_ = std::move(reclaim);
+}
+
+absl::Status JobStore::SetMaxPageCountForTesting(int64_t pages) {
+  std::lock_guard lock(mutex_);
+  return Exec(absl::StrCat("PRAGMA max_page_count = ", pages).c_str());
+}
+
+namespace {
+const absl::Status& StatusOf(const absl::Status& status) {
+  return status;
+}
+template <typename T>
+const absl::Status& StatusOf(const absl::StatusOr<T>& result) {
+  return result.status();
+}
+}  // namespace
+
+template <typename Op>
+auto JobStore::Writing(Op&& op) -> decltype(op()) {
+  std::lock_guard lock(mutex_);
+  auto result = op();
+  // Inside a transaction the whole transaction is retried instead (by its own Writing).
+  if (transactionDepth_ == 0 && reclaim_ && absl::IsResourceExhausted(StatusOf(result)) &&
+      reclaim_())
+    result = op();
+  return result;
+}
+
 absl::Status JobStore::Exec(const char* sql) {
   std::lock_guard lock(mutex_);
   char* error = nullptr;
@@ -151,9 +182,14 @@ absl::Status JobStore::Exec(const char* sql) {
 }
 
 absl::Status JobStore::Transaction(const std::function<absl::Status()>& body) {
-  std::lock_guard lock(mutex_);
+  return Writing([&] { return TransactionOnce(body); });
+}
+
+absl::Status JobStore::TransactionOnce(const std::function<absl::Status()>& body) {
   PB_RETURN_IF_ERROR(Exec("BEGIN IMMEDIATE"));
+  ++transactionDepth_;
   absl::Status status = body();
+  --transactionDepth_;
   if (status.ok()) {
     status = Exec("COMMIT");
     if (status.ok()) return status;
@@ -169,35 +205,37 @@ absl::Status JobStore::Transaction(const std::function<absl::Status()>& body) {
 }
 
 absl::Status JobStore::Insert(const v1::BakeJob& record, const v1::JobSpec& spec) {
-  std::lock_guard lock(mutex_);
-  Statement s(db_, "INSERT INTO jobs(name, request_id, state, record, spec) VALUES(?,?,?,?,?)");
-  PB_RETURN_IF_ERROR(s.status());
-  s.BindText(1, record.name());
-  if (record.request_id().empty())
-    s.BindNull(2);
-  else
-    s.BindText(2, record.request_id());
-  s.Bind(3, int64_t(record.state()));
-  v1::BakeJob stripped = record;
-  stripped.clear_job();
-  s.Bind(4, stripped.SerializeAsString());
-  s.Bind(5, spec.SerializeAsString());
-  return s.Step().status();
+  return Writing([&]() -> absl::Status {
+    Statement s(db_, "INSERT INTO jobs(name, request_id, state, record, spec) VALUES(?,?,?,?,?)");
+    PB_RETURN_IF_ERROR(s.status());
+    s.BindText(1, record.name());
+    if (record.request_id().empty())
+      s.BindNull(2);
+    else
+      s.BindText(2, record.request_id());
+    s.Bind(3, int64_t(record.state()));
+    v1::BakeJob stripped = record;
+    stripped.clear_job();
+    s.Bind(4, stripped.SerializeAsString());
+    s.Bind(5, spec.SerializeAsString());
+    return s.Step().status();
+  });
 }
 
 absl::Status JobStore::Update(const v1::BakeJob& record) {
-  std::lock_guard lock(mutex_);
-  Statement s(db_, "UPDATE jobs SET state = ?, record = ? WHERE name = ?");
-  PB_RETURN_IF_ERROR(s.status());
-  s.Bind(1, int64_t(record.state()));
-  v1::BakeJob stripped = record;
-  stripped.clear_job();
-  s.Bind(2, stripped.SerializeAsString());
-  s.BindText(3, record.name());
-  PB_RETURN_IF_ERROR(s.Step().status());
-  if (sqlite3_changes(db_) == 0)
-    return absl::NotFoundError(absl::StrCat(record.name(), ": no such job"));
-  return absl::OkStatus();
+  return Writing([&]() -> absl::Status {
+    Statement s(db_, "UPDATE jobs SET state = ?, record = ? WHERE name = ?");
+    PB_RETURN_IF_ERROR(s.status());
+    s.Bind(1, int64_t(record.state()));
+    v1::BakeJob stripped = record;
+    stripped.clear_job();
+    s.Bind(2, stripped.SerializeAsString());
+    s.BindText(3, record.name());
+    PB_RETURN_IF_ERROR(s.Step().status());
+    if (sqlite3_changes(db_) == 0)
+      return absl::NotFoundError(absl::StrCat(record.name(), ": no such job"));
+    return absl::OkStatus();
+  });
 }
 
 absl::StatusOr<std::optional<StoredJob>> JobStore::Get(const std::string& name) {
@@ -276,12 +314,13 @@ absl::StatusOr<int64_t> JobStore::CountInState(v1::BakeJob::State state) {
 }
 
 absl::StatusOr<bool> JobStore::Delete(const std::string& name) {
-  std::lock_guard lock(mutex_);
-  Statement s(db_, "DELETE FROM jobs WHERE name = ?");
-  PB_RETURN_IF_ERROR(s.status());
-  s.BindText(1, name);
-  PB_RETURN_IF_ERROR(s.Step().status());
-  return sqlite3_changes(db_) > 0;
+  return Writing([&]() -> absl::StatusOr<bool> {
+    Statement s(db_, "DELETE FROM jobs WHERE name = ?");
+    PB_RETURN_IF_ERROR(s.status());
+    s.BindText(1, name);
+    PB_RETURN_IF_ERROR(s.Step().status());
+    return sqlite3_changes(db_) > 0;
+  });
 }
 
 absl::Status JobStore::ForEachJob(
@@ -343,20 +382,22 @@ absl::StatusOr<std::optional<v1::BakeJobResult>> JobStore::GetCached(const std::
 }
 
 absl::Status JobStore::PutCached(const std::string& jobDigest, const v1::BakeJobResult& result) {
-  std::lock_guard lock(mutex_);
-  Statement s(db_, "INSERT OR REPLACE INTO result_cache(job_digest, result) VALUES(?, ?)");
-  PB_RETURN_IF_ERROR(s.status());
-  s.BindText(1, jobDigest);
-  s.Bind(2, result.SerializeAsString());
-  return s.Step().status();
+  return Writing([&]() -> absl::Status {
+    Statement s(db_, "INSERT OR REPLACE INTO result_cache(job_digest, result) VALUES(?, ?)");
+    PB_RETURN_IF_ERROR(s.status());
+    s.BindText(1, jobDigest);
+    s.Bind(2, result.SerializeAsString());
+    return s.Step().status();
+  });
 }
 
 absl::Status JobStore::DeleteCached(const std::string& jobDigest) {
-  std::lock_guard lock(mutex_);
-  Statement s(db_, "DELETE FROM result_cache WHERE job_digest = ?");
-  PB_RETURN_IF_ERROR(s.status());
-  s.BindText(1, jobDigest);
-  return s.Step().status();
+  return Writing([&]() -> absl::Status {
+    Statement s(db_, "DELETE FROM result_cache WHERE job_digest = ?");
+    PB_RETURN_IF_ERROR(s.status());
+    s.BindText(1, jobDigest);
+    return s.Step().status();
+  });
 }
 
 }  // namespace probebake::server

@@ -67,13 +67,27 @@ class JobStore {
   // returns OK, rolled back otherwise.
   absl::Status Transaction(const std::function<absl::Status()>& body);
 
+  // Called when a write (or a whole transaction) fails for lack of space (RESOURCE_EXHAUSTED);
+  // when it returns true (it freed some) the write is tried once more.
+  void SetSpaceReclaimer(std::function<bool()> reclaim);
+  // For tests: the database may grow to `pages` pages at most, past which writes fail as on a
+  // full disk.
+  absl::Status SetMaxPageCountForTesting(int64_t pages);
+
  private:
   explicit JobStore(sqlite3* db) : db_(db) {}
   absl::Status Exec(const char* sql);
+  absl::Status TransactionOnce(const std::function<absl::Status()>& body);
+  // Runs a write under the lock, retried once when it failed for lack of space and reclaim_
+  // freed some (outside transactions).
+  template <typename Op>
+  auto Writing(Op&& op) -> decltype(op());
   class Statement;
 
   sqlite3* db_;
   std::recursive_mutex mutex_;
+  std::function<bool()> reclaim_;
+  int transactionDepth_ = 0;
 };
 
 }  // namespace probebake::server

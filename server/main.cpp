@@ -119,6 +119,12 @@ int main(int argc, char** argv) {
                  "Minutes between collections of such files (0: never)")
       ->check(CLI::Range(0.0, 1e6))
       ->capture_default_str();
+  int64_t diskReserveMb = options.diskReserveBytes >> 20;
+  app.add_option("--disk-reserve-mb", diskReserveMb,
+                 "MiB of disk held back (DATA/reserve) and given up when the disk is full, so "
+                 "the job store can still record cancels, deletes and job ends (0: none)")
+      ->check(CLI::Range(int64_t(0), int64_t(1) << 20))
+      ->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -132,6 +138,7 @@ int main(int argc, char** argv) {
   }
   probebake::SetLogLevel(spdlog::level::from_str(logLevel));
   options.dataDir = dataDir;
+  options.diskReserveBytes = diskReserveMb << 20;
   options.gc.grace = std::chrono::seconds(std::llround(blobGraceHours * 3600));
   options.gc.interval = std::chrono::seconds(std::llround(gcIntervalMinutes * 60));
   if (gcIntervalMinutes > 0 && options.gc.interval.count() == 0) {

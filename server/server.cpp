@@ -17,6 +17,7 @@
 #include "probebake/base/status.h"
 #include "server/auth.h"
 #include "server/blob_store.h"
+#include "server/disk_reserve.h"
 #include "server/file_util.h"
 #include "server/garbage_collector.h"
 #include "server/job_manager.h"
@@ -85,7 +86,16 @@ absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
   }
 
   PB_ASSIGN_OR_RETURN(s->blobs_, BlobStore::Open(options.dataDir, options.maxBlobBytes));
-  PB_ASSIGN_OR_RETURN(s->store_, JobStore::Open(options.dataDir / "jobs.sqlite"));
+  s->reserve_ =
+      std::make_unique<DiskReserve>(options.dataDir / "reserve", options.diskReserveBytes);
+  s->reserve_->Restore();
+  absl::StatusOr<std::unique_ptr<JobStore>> store = JobStore::Open(options.dataDir / "jobs.sqlite");
+  // A full disk fails the open in several ways (SQLITE_FULL, or an I/O error setting up the WAL).
+  if (!store.ok() && s->reserve_->Release())
+    store = JobStore::Open(options.dataDir / "jobs.sqlite");
+  if (!store.ok()) return store.status();
+  s->store_ = std::move(*store);
+  s->store_->SetSpaceReclaimer([reserve = s->reserve_.get()] { return reserve->Release(); });
 
   JobManagerConfig config;
   config.dataDir = options.dataDir;
@@ -134,6 +144,7 @@ absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
         return jobs->VolumesNotYetReferenced(since);
       },
       options.gc);
+  s->gc_->SetAfterCollection([reserve = s->reserve_.get()] { reserve->Restore(); });
   s->gc_->Start();
   Logger("server")->info("probebake-server listening on {} (port {}), data {}, {}{}",
                          options.listen, s->port_, options.dataDir.string(),

@@ -20,6 +20,7 @@ class Server;
 namespace probebake::server {
 
 class BlobStore;
+class DiskReserve;
 class JobStore;
 class JobManager;
 class TokenAuth;
@@ -44,6 +45,8 @@ struct ServerOptions {
   int64_t chunkBytes = int64_t(1) << 20;
   int maxMessageBytes = 4 << 20;
   GcConfig gc;  // what the data folder keeps, and how often it is collected
+  // Disk space held in DATA/reserve for the job store on a full disk (disk_reserve.h); 0: none.
+  int64_t diskReserveBytes = int64_t(16) << 20;
 };
 
 // Makes the backend once the blob store exists (ProductionBackend in the real server).
@@ -75,6 +78,7 @@ class ProbebakeServer {
   std::unique_ptr<JobStore> store_;
   std::unique_ptr<JobManager> jobs_;
   std::unique_ptr<GarbageCollector> gc_;
+  std::unique_ptr<DiskReserve> reserve_;
   std::shared_ptr<const TokenAuth> auth_;
   std::shared_ptr<CallCounter> calls_;
   std::unique_ptr<CapabilitiesService> capabilities_;

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <sqlite3.h>
 
+#include "probebake/base/status.h"
 #include "temp_dir.h"
 
 namespace probebake::server {
@@ -44,6 +45,60 @@ TEST(JobStore, ABusyDatabaseIsUnavailableNotInternal) {
   sqlite3_exec(other, "ROLLBACK", nullptr, nullptr, nullptr);
   sqlite3_close(other);
   EXPECT_TRUE((*store)->Insert(Record("bakeJobs/b", "", v1::BakeJob::QUEUED), Spec(3)).ok());
+}
+
+// A spec that needs pages of its own (about 160 kB).
+v1::JobSpec BigSpec() {
+  v1::JobSpec spec = Spec(3);
+  v1::Mesh* mesh = spec.mutable_scene()->add_meshes();
+  for (int i = 0; i < 20000; ++i) mesh->add_positions(double(i));
+  return spec;
+}
+
+TEST(JobStore, AWriteThatFindsTheDiskFullIsRetriedOnceSpaceIsFreed) {
+  // The database may not grow (max_page_count, as a full disk): a write fails RESOURCE_EXHAUSTED
+  // unless the reclaimer frees space, and then succeeds at its second try; a transaction is
+  // retried whole.
+  TempDir dir;
+  auto store = JobStore::Open(dir.path() / "jobs.sqlite");
+  ASSERT_TRUE(store.ok()) << store.status();
+  JobStore& s = **store;
+  ASSERT_TRUE(s.Insert(Record("bakeJobs/a", "", v1::BakeJob::QUEUED), Spec(3)).ok());
+  ASSERT_TRUE(s.SetMaxPageCountForTesting(1).ok());  // no larger than it is now
+  EXPECT_EQ(s.Insert(Record("bakeJobs/b", "", v1::BakeJob::QUEUED), BigSpec()).code(),
+            absl::StatusCode::kResourceExhausted);
+
+  int calls = 0;
+  s.SetSpaceReclaimer([&] {
+    ++calls;
+    return false;  // nothing to give back
+  });
+  EXPECT_EQ(s.Insert(Record("bakeJobs/b", "", v1::BakeJob::QUEUED), BigSpec()).code(),
+            absl::StatusCode::kResourceExhausted);
+  EXPECT_EQ(calls, 1);
+
+  calls = 0;
+  s.SetSpaceReclaimer([&] {
+    ++calls;
+    return s.SetMaxPageCountForTesting(1 << 30).ok();
+  });
+  EXPECT_TRUE(s.Insert(Record("bakeJobs/b", "", v1::BakeJob::QUEUED), BigSpec()).ok());
+  EXPECT_EQ(calls, 1);
+
+  calls = 0;
+  ASSERT_TRUE(s.SetMaxPageCountForTesting(1).ok());
+  const absl::Status committed = s.Transaction([&]() -> absl::Status {
+    PB_RETURN_IF_ERROR(s.Update(Record("bakeJobs/a", "", v1::BakeJob::RUNNING)));
+    return s.Insert(Record("bakeJobs/c", "", v1::BakeJob::QUEUED), BigSpec());
+  });
+  EXPECT_TRUE(committed.ok()) << committed;
+  EXPECT_EQ(calls, 1);
+  auto a = s.Get("bakeJobs/a");
+  ASSERT_TRUE(a.ok() && a->has_value());
+  EXPECT_EQ((*a)->record.state(), v1::BakeJob::RUNNING);
+  auto c = s.GetSpec("bakeJobs/c");
+  ASSERT_TRUE(c.ok() && c->has_value());
+  EXPECT_EQ((*c)->scene().meshes(0).positions_size(), 20000);
 }
 
 TEST(JobStore, InsertGetUpdateDeleteSurviveReopen) {
