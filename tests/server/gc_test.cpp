@@ -127,21 +127,14 @@ TEST(GarbageCollection, AVolumeWhoseJobsEndIsNotStoredYetStays) {
   // stored, referred to by no record. A collection meanwhile must keep it, however old it looks.
   // (It took it, and the job then SUCCEEDED with a volume that was gone.)
   TempDir dir;
-  const fs::path dataDir = dir.path() / "data";
-  std::unique_ptr<StoreWriteLock> lock;
-  std::promise<void> locked;
+  const std::filesystem::path dataDir = dir.path() / "data";
+  LockStoreAtVolumeWrite lock;
   TestServerOptions options;
-  options.volumeWriteFault = [&] {
-    if (!lock) {
-      lock = std::make_unique<StoreWriteLock>(dataDir);
-      locked.set_value();
-    }
-    return absl::OkStatus();
-  };
+  lock.Arm(&options, dataDir);
   TestServer s(options, dataDir);
   const v1::BakeJob created = s.Create(SmallJob(4, 43));
   auto watched = std::async(std::launch::async, [&] { return s.WaitFinal(created.name()); });
-  ASSERT_EQ(locked.get_future().wait_for(std::chrono::seconds(20)), std::future_status::ready);
+  ASSERT_TRUE(lock.WaitTaken(std::chrono::seconds(20)));
   fs::path volumeFile;  // the only blob: SmallJob has no input files
   for (int i = 0; i < 2000 && volumeFile.empty(); ++i) {
     std::error_code ec;
@@ -155,7 +148,7 @@ TEST(GarbageCollection, AVolumeWhoseJobsEndIsNotStoredYetStays) {
   EXPECT_EQ(report.blobs, 0);
   EXPECT_EQ(report.liveBlobs, 1);
   EXPECT_TRUE(fs::exists(volumeFile));
-  lock->Release();
+  lock.Release();
   const v1::BakeJob final = watched.get();
   ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();
   EXPECT_EQ(final.result().volume().hash(), volumeFile.filename().string());

@@ -582,22 +582,15 @@ TEST(Service, AJobsEndIsAnnouncedOnlyOnceStored) {
   // restart.)
   TempDir dir;
   const std::filesystem::path dataDir = dir.path() / "data";
-  std::unique_ptr<StoreWriteLock> lock;
-  std::promise<void> locked;
+  LockStoreAtVolumeWrite lock;
   TestServerOptions options;
-  options.volumeWriteFault = [&] {
-    if (!lock) {
-      lock = std::make_unique<StoreWriteLock>(dataDir);
-      locked.set_value();
-    }
-    return absl::OkStatus();
-  };
+  lock.Arm(&options, dataDir);
   TestServer s(options, dataDir);
   const v1::BakeJob created = s.Create(SmallJob(4, 21));
   std::vector<v1::BakeJob> messages;
   auto watched =
       std::async(std::launch::async, [&] { return s.WaitFinal(created.name(), &messages); });
-  ASSERT_EQ(locked.get_future().wait_for(std::chrono::seconds(20)), std::future_status::ready);
+  ASSERT_TRUE(lock.WaitTaken(std::chrono::seconds(20)));
   // The end's first try waits out the busy timeout and fails; the job says so.
   std::string waiting;
   for (int i = 0; i < 2000 && waiting.empty(); ++i) {
@@ -607,7 +600,7 @@ TEST(Service, AJobsEndIsAnnouncedOnlyOnceStored) {
   EXPECT_TRUE(absl::StartsWith(waiting, "waiting to store the job's end: ")) << waiting;
   EXPECT_EQ(watched.wait_for(std::chrono::seconds(0)), std::future_status::timeout);
   const auto released = steady_clock::now();
-  lock->Release();
+  lock.Release();
   const v1::BakeJob final = watched.get();
   EXPECT_GE(steady_clock::now(), released);
   ASSERT_EQ(final.state(), v1::BakeJob::SUCCEEDED) << final.DebugString();

@@ -27,6 +27,24 @@ void StoreWriteLock::Release() {
   db_ = nullptr;
 }
 
+void LockStoreAtVolumeWrite::Arm(TestServerOptions* options, std::filesystem::path dataDir) {
+  options->volumeWriteFault = [this, dataDir = std::move(dataDir)] {
+    if (!lock_) {
+      lock_ = std::make_unique<StoreWriteLock>(dataDir);
+      taken_.set_value();
+    }
+    return absl::OkStatus();
+  };
+}
+
+bool LockStoreAtVolumeWrite::WaitTaken(std::chrono::seconds timeout) {
+  return takenFuture_.wait_for(timeout) == std::future_status::ready;
+}
+
+void LockStoreAtVolumeWrite::Release() {
+  if (lock_) lock_->Release();
+}
+
 v1::JobSpec SmallJob(int probes, uint64_t seed) {
   std::string json = R"({
     "scene": {

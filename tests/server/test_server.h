@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <functional>
+#include <future>
 #include <memory>
 #include <optional>
 #include <string>
@@ -58,6 +59,22 @@ class StoreWriteLock {
  private:
   sqlite3* db_ = nullptr;
   bool locked_ = false;
+};
+
+// Takes a StoreWriteLock on the data folder from the job's worker just before its first volume
+// write (after the bake), so the job's end meets a locked store. Arm before the server starts;
+// the object must outlive the server.
+class LockStoreAtVolumeWrite {
+ public:
+  void Arm(TestServerOptions* options, std::filesystem::path dataDir);
+  // Whether the lock was taken within `timeout`.
+  bool WaitTaken(std::chrono::seconds timeout);
+  void Release();
+
+ private:
+  std::unique_ptr<StoreWriteLock> lock_;
+  std::promise<void> taken_;
+  std::future<void> takenFuture_ = taken_.get_future();
 };
 
 class TestServer {
