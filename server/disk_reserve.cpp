@@ -5,6 +5,7 @@
 #include <sys/statvfs.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
 
 #include "probebake/base/log.h"
@@ -19,25 +20,26 @@ bool DiskReserve::held() const {
   return held_;
 }
 
-bool DiskReserve::Restore() {
-  std::lock_guard lock(mutex_);
-  if (bytes_ <= 0) return false;
+namespace {
+
+int64_t AllocatedBytes(const fs::path& path) {
   struct stat st;
-  if (::stat(path_.c_str(), &st) == 0 && int64_t(st.st_blocks) * 512 >= bytes_) {
-    held_ = true;
-    return true;
-  }
+  return ::stat(path.c_str(), &st) == 0 ? int64_t(st.st_blocks) * 512 : 0;
+}
+
+int64_t AvailableBytes(const fs::path& dir) {
   struct statvfs vfs;
-  if (::statvfs(path_.parent_path().c_str(), &vfs) != 0) return false;
-  const int64_t available = int64_t(vfs.f_bavail) * int64_t(vfs.f_frsize);
-  if (available < 2 * bytes_) {
-    Logger("server")->debug("no disk reserve: {} bytes free", available);
-    return false;
-  }
+  if (::statvfs(dir.c_str(), &vfs) != 0) return 0;
+  return int64_t(vfs.f_bavail) * int64_t(vfs.f_frsize);
+}
+
+}  // namespace
+
+bool DiskReserve::AllocateLocked(int64_t bytes) {
   const fs::path tmp = fs::path(path_).concat(".tmp");
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
   if (fd < 0) return false;
-  const int err = ::posix_fallocate(fd, 0, off_t(bytes_));
+  const int err = ::posix_fallocate(fd, 0, off_t(bytes));
   const bool synced = err == 0 && ::fsync(fd) == 0;
   ::close(fd);
   if (!synced || ::rename(tmp.c_str(), path_.c_str()) != 0) {
@@ -46,10 +48,40 @@ bool DiskReserve::Restore() {
                            std::strerror(err != 0 ? err : errno));
     return false;
   }
-  if (!held_)
-    Logger("server")->info("holding {} MiB of disk in reserve ({})", bytes_ >> 20, path_.string());
+  Logger("server")->info("holding {} MiB of disk in reserve ({})", bytes >> 20, path_.string());
   held_ = true;
   return true;
+}
+
+bool DiskReserve::Restore() {
+  std::lock_guard lock(mutex_);
+  if (bytes_ <= 0) return false;
+  const int64_t held = AllocatedBytes(path_);
+  if (held >= bytes_) {
+    held_ = true;
+    return true;
+  }
+  // Beside the file's own blocks, which a new file replaces.
+  const int64_t available = AvailableBytes(path_.parent_path()) + held;
+  if (available < 2 * bytes_) {
+    if (!warnedNoRoom_)
+      Logger("server")->warn(
+          "no full disk reserve: {} MiB free, {} MiB wanted with as much to spare", available >> 20,
+          bytes_ >> 20);
+    warnedNoRoom_ = true;
+    return held_ = held > 0;
+  }
+  warnedNoRoom_ = false;
+  return AllocateLocked(bytes_);
+}
+
+bool DiskReserve::Retake() {
+  std::lock_guard lock(mutex_);
+  if (bytes_ <= 0) return false;
+  if (AllocatedBytes(path_) > 0) return held_ = true;
+  constexpr int64_t kMiB = int64_t(1) << 20;
+  const int64_t bytes = std::min(bytes_, AvailableBytes(path_.parent_path())) / kMiB * kMiB;
+  return bytes >= kMiB && AllocateLocked(bytes);
 }
 
 bool DiskReserve::Release() {

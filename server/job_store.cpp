@@ -139,9 +139,10 @@ JobStore::~JobStore() {
   sqlite3_close(db_);
 }
 
-void JobStore::SetSpaceReclaimer(std::function<bool()> reclaim) {
+void JobStore::SetSpaceReclaimer(std::function<bool()> reclaim, std::function<void()> restore) {
   std::lock_guard lock(mutex_);
   reclaim_ = std::move(reclaim);
+  restore_ = std::move(restore);
 }
 
 absl::Status JobStore::SetMaxPageCountForTesting(int64_t pages) {
@@ -165,8 +166,10 @@ auto JobStore::Writing(Op&& op) -> decltype(op()) {
   auto result = op();
   // Inside a transaction the whole transaction is retried instead (by its own Writing).
   if (transactionDepth_ == 0 && reclaim_ && absl::IsResourceExhausted(StatusOf(result)) &&
-      reclaim_())
+      reclaim_()) {
     result = op();
+    if (restore_) restore_();
+  }
   return result;
 }
 

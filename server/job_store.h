@@ -67,9 +67,10 @@ class JobStore {
   // returns OK, rolled back otherwise.
   absl::Status Transaction(const std::function<absl::Status()>& body);
 
-  // Called when a write (or a whole transaction) fails for lack of space (RESOURCE_EXHAUSTED);
-  // when it returns true (it freed some) the write is tried once more.
-  void SetSpaceReclaimer(std::function<bool()> reclaim);
+  // `reclaim` is called when a write (or a whole transaction) fails for lack of space
+  // (RESOURCE_EXHAUSTED); when it returns true (it freed some) the write is tried once more, and
+  // `restore` is called after that try.
+  void SetSpaceReclaimer(std::function<bool()> reclaim, std::function<void()> restore);
   // For tests: the database may grow to `pages` pages at most, past which writes fail as on a
   // full disk.
   absl::Status SetMaxPageCountForTesting(int64_t pages);
@@ -87,6 +88,7 @@ class JobStore {
   sqlite3* db_;
   std::recursive_mutex mutex_;
   std::function<bool()> reclaim_;
+  std::function<void()> restore_;
   int transactionDepth_ = 0;
 };
 

@@ -91,11 +91,15 @@ absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
   s->reserve_->Restore();
   absl::StatusOr<std::unique_ptr<JobStore>> store = JobStore::Open(options.dataDir / "jobs.sqlite");
   // A full disk fails the open in several ways (SQLITE_FULL, or an I/O error setting up the WAL).
-  if (!store.ok() && s->reserve_->Release())
+  if (!store.ok() && s->reserve_->Release()) {
     store = JobStore::Open(options.dataDir / "jobs.sqlite");
+    s->reserve_->Retake();
+  }
   if (!store.ok()) return store.status();
   s->store_ = std::move(*store);
-  s->store_->SetSpaceReclaimer([reserve = s->reserve_.get()] { return reserve->Release(); });
+  // Lent to the store for one write at a time, and taken back at once (disk_reserve.h).
+  s->store_->SetSpaceReclaimer([reserve = s->reserve_.get()] { return reserve->Release(); },
+                               [reserve = s->reserve_.get()] { reserve->Retake(); });
 
   JobManagerConfig config;
   config.dataDir = options.dataDir;

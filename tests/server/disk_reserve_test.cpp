@@ -32,12 +32,26 @@ TEST(DiskReserve, HoldsAllocatedSpaceGivesItBackAndTakesItAgain) {
   EXPECT_GE(AllocatedBytes(path), 1 << 20);
 }
 
+TEST(DiskReserve, RetakeTakesBackWhatIsFreeAtOnce) {
+  // Lent for a write and taken back right after it, without Restore's room to spare.
+  TempDir dir;
+  const auto path = dir.path() / "reserve";
+  DiskReserve reserve(path, 2 << 20);
+  ASSERT_TRUE(reserve.Restore());
+  ASSERT_TRUE(reserve.Release());
+  EXPECT_TRUE(reserve.Retake());
+  EXPECT_TRUE(reserve.held());
+  EXPECT_GE(AllocatedBytes(path), 2 << 20);
+  EXPECT_TRUE(reserve.Retake());  // held already: unchanged
+}
+
 TEST(DiskReserve, ZeroBytesHoldsNothing) {
   TempDir dir;
   DiskReserve none(dir.path() / "reserve", 0);
   EXPECT_FALSE(none.Restore());
   EXPECT_FALSE(std::filesystem::exists(dir.path() / "reserve"));
   EXPECT_FALSE(none.Release());
+  EXPECT_FALSE(none.Retake());
 }
 
 TEST(DiskReserve, IsNotTakenWithoutRoomToSpare) {

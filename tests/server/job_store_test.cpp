@@ -68,22 +68,28 @@ TEST(JobStore, AWriteThatFindsTheDiskFullIsRetriedOnceSpaceIsFreed) {
   EXPECT_EQ(s.Insert(Record("bakeJobs/b", "", v1::BakeJob::QUEUED), BigSpec()).code(),
             absl::StatusCode::kResourceExhausted);
 
-  int calls = 0;
-  s.SetSpaceReclaimer([&] {
-    ++calls;
-    return false;  // nothing to give back
-  });
+  int calls = 0, restores = 0;
+  s.SetSpaceReclaimer(
+      [&] {
+        ++calls;
+        return false;  // nothing to give back
+      },
+      [&] { ++restores; });
   EXPECT_EQ(s.Insert(Record("bakeJobs/b", "", v1::BakeJob::QUEUED), BigSpec()).code(),
             absl::StatusCode::kResourceExhausted);
   EXPECT_EQ(calls, 1);
+  EXPECT_EQ(restores, 0);  // nothing was lent
 
   calls = 0;
-  s.SetSpaceReclaimer([&] {
-    ++calls;
-    return s.SetMaxPageCountForTesting(1 << 30).ok();
-  });
+  s.SetSpaceReclaimer(
+      [&] {
+        ++calls;
+        return s.SetMaxPageCountForTesting(1 << 30).ok();
+      },
+      [&] { ++restores; });
   EXPECT_TRUE(s.Insert(Record("bakeJobs/b", "", v1::BakeJob::QUEUED), BigSpec()).ok());
   EXPECT_EQ(calls, 1);
+  EXPECT_EQ(restores, 1);
 
   calls = 0;
   ASSERT_TRUE(s.SetMaxPageCountForTesting(1).ok());
@@ -93,6 +99,7 @@ TEST(JobStore, AWriteThatFindsTheDiskFullIsRetriedOnceSpaceIsFreed) {
   });
   EXPECT_TRUE(committed.ok()) << committed;
   EXPECT_EQ(calls, 1);
+  EXPECT_EQ(restores, 2);
   auto a = s.Get("bakeJobs/a");
   ASSERT_TRUE(a.ok() && a->has_value());
   EXPECT_EQ((*a)->record.state(), v1::BakeJob::RUNNING);
