@@ -96,7 +96,8 @@ JobManager::JobManager(JobManagerConfig config, BlobStore* blobs, JobStore* stor
       blobs_(blobs),
       store_(store),
       backend_(std::move(backend)),
-      arena_(std::max(1, config_.maxConcurrentJobs) + 1, 1) {
+      arena_(std::max(1, config_.maxConcurrentJobs) + 1, 1),
+      redact_(config_.dataDir) {
   PB_CHECK_GE(config_.maxConcurrentJobs, 1);
   PB_CHECK_GE(config_.maxQueuedJobs, 1);
   // Every running job holds one worker for its task and asks Bake for threadsPerJob threads;
@@ -766,8 +767,9 @@ std::set<std::string> JobManager::VolumesNotYetReferenced(
 }
 
 void JobManager::SetWaitingLocked(RunningJob& job, const std::string& why) {
-  if (job.record.progress().waiting() == why) return;
-  job.record.mutable_progress()->set_waiting(why);
+  const std::string shown = redact_(why);
+  if (job.record.progress().waiting() == shown) return;
+  job.record.mutable_progress()->set_waiting(shown);
   *job.record.mutable_update_time() = Now();
   NotifyLocked(job.record);
 }
@@ -815,6 +817,7 @@ void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
     p->clear_eta();
   } else if (final) {
     *record.mutable_error() = outcome.error;
+    record.mutable_error()->set_message(redact_(outcome.error.message()));
   }
   // A state is announced only once stored: a client told SUCCEEDED or FAILED must find the job
   // so after a restart too. A store that cannot write (a full disk) is retried with backoff, the

@@ -36,6 +36,7 @@
 #include "server/bake_backend.h"
 #include "server/checkpoint.h"
 #include "server/job_state.h"
+#include "server/path_redactor.h"
 
 namespace probebake::server {
 
@@ -185,6 +186,7 @@ class JobManager {
   // maxConcurrentJobs worker slots plus one slot reserved for the dispatcher, so spawning a job
   // never waits for a running one.
   tbb::task_arena arena_;
+  const PathRedactor redact_;  // job errors and waiting texts name the data folder as DATA
   tbb::task_group tasks_;
   std::thread dispatcher_;
 };

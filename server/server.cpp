@@ -119,8 +119,8 @@ absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
   s->calls_ = std::make_shared<CallCounter>();
   s->capabilities_ = std::make_unique<CapabilitiesService>(s->auth_, s->calls_, s->jobs_.get(),
                                                            s->blobs_.get(), limits);
-  s->content_ =
-      std::make_unique<ContentStorageService>(s->auth_, s->calls_, s->blobs_.get(), limits);
+  s->content_ = std::make_unique<ContentStorageService>(s->auth_, s->calls_, s->blobs_.get(),
+                                                        limits, PathRedactor(options.dataDir));
   s->bakeJobs_ = std::make_unique<BakeJobsService>(s->auth_, s->calls_, s->jobs_.get());
 
   grpc::EnableDefaultHealthCheckService(true);

@@ -87,8 +87,12 @@ grpc::ServerUnaryReactor* CapabilitiesService::GetCapabilities(
 
 ContentStorageService::ContentStorageService(std::shared_ptr<const TokenAuth> auth,
                                              std::shared_ptr<CallCounter> calls, BlobStore* blobs,
-                                             ServiceLimits limits)
-    : auth_(std::move(auth)), calls_(std::move(calls)), blobs_(blobs), limits_(limits) {}
+                                             ServiceLimits limits, PathRedactor redact)
+    : auth_(std::move(auth)),
+      calls_(std::move(calls)),
+      blobs_(blobs),
+      limits_(limits),
+      redact_(std::move(redact)) {}
 
 grpc::ServerUnaryReactor* ContentStorageService::FindMissingBlobs(
     grpc::CallbackServerContext* context, const v1::FindMissingBlobsRequest* request,
@@ -122,7 +126,7 @@ grpc::ServerUnaryReactor* ContentStorageService::QueryWriteStatus(
   if (!committed.ok()) {
     Logger("blobs")->warn("QueryWriteStatus {}: {}", DigestString(request->digest()),
                           std::string(committed.status().message()));
-    return Done(context, committed.status());
+    return Done(context, redact_(committed.status()));
   }
   response->set_committed_size(*committed);
   response->set_complete(complete);
@@ -136,8 +140,8 @@ class WriteBlobReactor final : public grpc::ServerReadReactor<v1::WriteBlobReque
  public:
   WriteBlobReactor(const TokenAuth& auth, std::shared_ptr<CallCounter> calls,
                    grpc::CallbackServerContext* context, BlobStore* blobs,
-                   v1::WriteBlobResponse* response)
-      : calls_(std::move(calls)), blobs_(blobs), response_(response) {
+                   const PathRedactor& redact, v1::WriteBlobResponse* response)
+      : calls_(std::move(calls)), blobs_(blobs), redact_(redact), response_(response) {
     calls_->Enter();
     if (grpc::Status status = auth.Check(*context); !status.ok()) {
       Finish(status);
@@ -166,7 +170,7 @@ class WriteBlobReactor final : public grpc::ServerReadReactor<v1::WriteBlobReque
         Logger("blobs")->warn("WriteBlob {}: {}", DigestString(digest_),
                               std::string(status.message()));
       upload_.reset();
-      Finish(ToGrpc(status));
+      Finish(ToGrpc(redact_(status)));
       return;
     }
     if (finished_) {
@@ -212,6 +216,7 @@ class WriteBlobReactor final : public grpc::ServerReadReactor<v1::WriteBlobReque
 
   std::shared_ptr<CallCounter> calls_;
   BlobStore* blobs_;
+  const PathRedactor& redact_;
   v1::WriteBlobResponse* response_;
   v1::WriteBlobRequest request_;
   v1::Digest digest_;
@@ -224,11 +229,12 @@ class ReadBlobReactor final : public grpc::ServerWriteReactor<v1::ReadBlobRespon
  public:
   ReadBlobReactor(const TokenAuth& auth, std::shared_ptr<CallCounter> calls,
                   grpc::CallbackServerContext* context, const BlobStore* blobs,
-                  const v1::ReadBlobRequest& request, int64_t chunkBytes)
-      : calls_(std::move(calls)), chunkBytes_(chunkBytes) {
+                  const PathRedactor& redact, const v1::ReadBlobRequest& request,
+                  int64_t chunkBytes)
+      : calls_(std::move(calls)), redact_(redact), chunkBytes_(chunkBytes) {
     calls_->Enter();
     grpc::Status status = auth.Check(*context);
-    if (status.ok()) status = ToGrpc(Open(blobs, request));
+    if (status.ok()) status = ToGrpc(redact_(Open(blobs, request)));
     if (!status.ok()) {
       Finish(status);
       return;
@@ -274,7 +280,7 @@ class ReadBlobReactor final : public grpc::ServerWriteReactor<v1::ReadBlobRespon
                                         response_.mutable_data());
     if (!read.ok()) {
       Logger("blobs")->error("ReadBlob: {}", std::string(read.message()));
-      Finish(ToGrpc(read));
+      Finish(ToGrpc(redact_(read)));
       return;
     }
     position_ += int64_t(response_.data().size());
@@ -282,6 +288,7 @@ class ReadBlobReactor final : public grpc::ServerWriteReactor<v1::ReadBlobRespon
   }
 
   std::shared_ptr<CallCounter> calls_;
+  const PathRedactor& redact_;
   int64_t chunkBytes_;
   std::unique_ptr<BlobReader> reader_;
   int64_t position_ = 0, end_ = 0;
@@ -292,12 +299,13 @@ class ReadBlobReactor final : public grpc::ServerWriteReactor<v1::ReadBlobRespon
 
 grpc::ServerReadReactor<v1::WriteBlobRequest>* ContentStorageService::WriteBlob(
     grpc::CallbackServerContext* context, v1::WriteBlobResponse* response) {
-  return new WriteBlobReactor(*auth_, calls_, context, blobs_, response);
+  return new WriteBlobReactor(*auth_, calls_, context, blobs_, redact_, response);
 }
 
 grpc::ServerWriteReactor<v1::ReadBlobResponse>* ContentStorageService::ReadBlob(
     grpc::CallbackServerContext* context, const v1::ReadBlobRequest* request) {
-  return new ReadBlobReactor(*auth_, calls_, context, blobs_, *request, limits_.chunkBytes);
+  return new ReadBlobReactor(*auth_, calls_, context, blobs_, redact_, *request,
+                             limits_.chunkBytes);
 }
 
 // ---- BakeJobs ----
@@ -324,7 +332,10 @@ spdlog::level::level_enum RefusalLevel(absl::StatusCode code) {
 
 BakeJobsService::BakeJobsService(std::shared_ptr<const TokenAuth> auth,
                                  std::shared_ptr<CallCounter> calls, JobManager* jobs)
-    : auth_(std::move(auth)), calls_(std::move(calls)), jobs_(jobs) {}
+    : auth_(std::move(auth)),
+      calls_(std::move(calls)),
+      jobs_(jobs),
+      redact_(jobs->config().dataDir) {}
 
 grpc::ServerUnaryReactor* BakeJobsService::CreateBakeJob(grpc::CallbackServerContext* context,
                                                          const v1::CreateBakeJobRequest* request,
@@ -338,7 +349,7 @@ grpc::ServerUnaryReactor* BakeJobsService::CreateBakeJob(grpc::CallbackServerCon
     const absl::StatusCode code = job.status().code();
     Logger("server")->log(RefusalLevel(code), "CreateBakeJob refused ({}): {}",
                           absl::StatusCodeToString(code), std::string(job.status().message()));
-    return Done(context, job.status());
+    return Done(context, redact_(job.status()));
   }
   *response = std::move(*job);
   return Done(context, grpc::Status::OK);
@@ -352,7 +363,7 @@ grpc::ServerUnaryReactor* BakeJobsService::GetBakeJob(grpc::CallbackServerContex
   absl::StatusOr<v1::BakeJob> job =
       jobs_->GetJob(request->name(),
                     request->view() == v1::BAKE_JOB_VIEW_UNSPECIFIED ? v1::FULL : request->view());
-  if (!job.ok()) return Done(context, job.status());
+  if (!job.ok()) return Done(context, redact_(job.status()));
   *response = std::move(*job);
   return Done(context, grpc::Status::OK);
 }
@@ -363,7 +374,7 @@ grpc::ServerUnaryReactor* BakeJobsService::ListBakeJobs(grpc::CallbackServerCont
   CallScope scope(*calls_);
   if (grpc::Status auth = auth_->Check(*context); !auth.ok()) return Done(context, auth);
   absl::StatusOr<v1::ListBakeJobsResponse> page = jobs_->ListJobs(*request);
-  if (!page.ok()) return Done(context, page.status());
+  if (!page.ok()) return Done(context, redact_(page.status()));
   *response = std::move(*page);
   return Done(context, grpc::Status::OK);
 }
@@ -374,7 +385,7 @@ grpc::ServerUnaryReactor* BakeJobsService::CancelBakeJob(grpc::CallbackServerCon
   CallScope scope(*calls_);
   if (grpc::Status auth = auth_->Check(*context); !auth.ok()) return Done(context, auth);
   absl::StatusOr<v1::BakeJob> job = jobs_->CancelJob(request->name());
-  if (!job.ok()) return Done(context, job.status());
+  if (!job.ok()) return Done(context, redact_(job.status()));
   *response = std::move(*job);
   return Done(context, grpc::Status::OK);
 }
@@ -384,7 +395,7 @@ grpc::ServerUnaryReactor* BakeJobsService::DeleteBakeJob(grpc::CallbackServerCon
                                                          google::protobuf::Empty* /*response*/) {
   CallScope scope(*calls_);
   if (grpc::Status auth = auth_->Check(*context); !auth.ok()) return Done(context, auth);
-  return Done(context, jobs_->DeleteJob(request->name()));
+  return Done(context, redact_(jobs_->DeleteJob(request->name())));
 }
 
 namespace {

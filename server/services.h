@@ -9,6 +9,7 @@
 
 #include "probebake/v1/service.grpc.pb.h"
 #include "server/auth.h"
+#include "server/path_redactor.h"
 
 namespace probebake::server {
 
@@ -49,8 +50,9 @@ class CapabilitiesService final : public v1::Capabilities::CallbackService {
 
 class ContentStorageService final : public v1::ContentStorage::CallbackService {
  public:
+  // Errors sent to clients name the data folder as DATA (`redact`).
   ContentStorageService(std::shared_ptr<const TokenAuth> auth, std::shared_ptr<CallCounter> calls,
-                        BlobStore* blobs, ServiceLimits limits);
+                        BlobStore* blobs, ServiceLimits limits, PathRedactor redact);
   grpc::ServerUnaryReactor* FindMissingBlobs(grpc::CallbackServerContext* context,
                                              const v1::FindMissingBlobsRequest* request,
                                              v1::FindMissingBlobsResponse* response) override;
@@ -67,6 +69,7 @@ class ContentStorageService final : public v1::ContentStorage::CallbackService {
   std::shared_ptr<CallCounter> calls_;
   BlobStore* blobs_;
   ServiceLimits limits_;
+  PathRedactor redact_;
 };
 
 class BakeJobsService final : public v1::BakeJobs::CallbackService {
@@ -95,6 +98,7 @@ class BakeJobsService final : public v1::BakeJobs::CallbackService {
   std::shared_ptr<const TokenAuth> auth_;
   std::shared_ptr<CallCounter> calls_;
   JobManager* jobs_;
+  PathRedactor redact_;  // errors sent to clients name the data folder as DATA
 };
 
 // absl::Status -> grpc::Status (same code numbers, same message).

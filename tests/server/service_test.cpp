@@ -15,6 +15,7 @@
 #include <grpcpp/generic/generic_stub.h>
 
 #include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
 #include "probebake/job/digest.h"
 #include "server/job_manager.h"
 #include "test_server.h"
@@ -749,18 +750,24 @@ TEST(Service, AJobWaitingForDiskSpaceCanBeCancelledOrRestarted) {
 
 TEST(Service, AVolumeWriteFailingForAnotherReasonFailsTheJob) {
   // Only a lack of space is waited out: another write error ends the job FAILED at stage
-  // "store" at once, without a retry.
+  // "store" at once, without a retry. Its message names the data folder as DATA: clients are not
+  // told where the server keeps its files.
   std::atomic<int> writes{0};
+  TempDir dir;
+  const std::filesystem::path dataDir = dir.path() / "data";
   TestServerOptions options;
   options.volumeWriteFault = [&] {
     ++writes;
-    return absl::InternalError("data/tmp/x.vdb: OpenVDB: something broke");
+    return absl::InternalError(
+        absl::StrCat((dataDir / "tmp/x.vdb").string(), ": OpenVDB: something broke"));
   };
-  TestServer s(options);
+  TestServer s(options, dataDir);
   const v1::BakeJob final = s.WaitFinal(s.Create(SmallJob(2, 34)).name());
   EXPECT_EQ(final.state(), v1::BakeJob::FAILED);
   EXPECT_EQ(final.error().code(), int(grpc::StatusCode::INTERNAL));
   EXPECT_EQ(final.error().details().at("stage"), "store");
+  EXPECT_EQ(final.error().message(), "DATA/tmp/x.vdb: OpenVDB: something broke");
+  EXPECT_EQ(s.Get(final.name()).error().message(), final.error().message());
   EXPECT_EQ(writes.load(), 1);
 }
 
