@@ -142,8 +142,8 @@ int main(int argc, char** argv) {
   options.gc.grace = std::chrono::seconds(std::llround(blobGraceHours * 3600));
   options.gc.interval = std::chrono::seconds(std::llround(gcIntervalMinutes * 60));
   if (gcIntervalMinutes > 0 && options.gc.interval.count() == 0) {
-    std::fprintf(stderr, "--gc-interval-minutes: %g is under a second; use 0 for never\n",
-                 gcIntervalMinutes);
+    Logger("server")->error("--gc-interval-minutes: {} is under a second; use 0 for never",
+                            gcIntervalMinutes);
     return kExitUsage;
   }
   options.tokenFile = tokenFile;
