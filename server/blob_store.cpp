@@ -53,6 +53,13 @@ absl::Status ReadFully(int fd, int64_t offset, int64_t count, std::string* out) 
   return absl::OkStatus();
 }
 
+// A blob's time of last use is its file's modification time (Collect). A store that cannot be
+// written keeps its blobs anyway: nothing is collected there.
+void StampUsed(const fs::path& path) {
+  if (::utimensat(AT_FDCWD, path.c_str(), nullptr, 0) != 0)
+    Logger("blobs")->debug("touch {}: {}", path.string(), std::strerror(errno));
+}
+
 }  // namespace
 
 absl::Status ValidateDigest(const v1::Digest& digest, std::string_view fieldPath) {
@@ -234,10 +241,7 @@ bool BlobStore::Contains(const v1::Digest& digest) const {
 bool BlobStore::Touch(const v1::Digest& digest) {
   std::lock_guard lock(mutex_);
   if (!Contains(digest)) return false;
-  const fs::path path = BlobPath(digest.hash());
-  // A store that cannot be written keeps its blobs anyway: nothing is collected there.
-  if (::utimensat(AT_FDCWD, path.c_str(), nullptr, 0) != 0)
-    Logger("blobs")->debug("touch {}: {}", path.string(), std::strerror(errno));
+  StampUsed(BlobPath(digest.hash()));
   return true;
 }
 
@@ -306,8 +310,7 @@ absl::Status BlobStore::Publish(const fs::path& from, const std::string& hash) {
     std::lock_guard lock(mutex_);  // not between a collection's check of the name and its removal
     if (::rename(from.c_str(), target.c_str()) != 0) return ErrnoError("rename", from, errno);
     // Stored now, whenever its bytes were written: what a collection under way compares with.
-    if (::utimensat(AT_FDCWD, target.c_str(), nullptr, 0) != 0)
-      Logger("blobs")->debug("touch {}: {}", target.string(), std::strerror(errno));
+    StampUsed(target);
   }
   PB_RETURN_IF_ERROR(FsyncDir(target.parent_path()));
   Logger("blobs")->debug("stored blob {}", hash);

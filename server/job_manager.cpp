@@ -38,6 +38,11 @@ constexpr size_t kMaxRequestIdLength = 128;
 constexpr std::chrono::seconds kStoreRetryFirst{1};
 constexpr std::chrono::seconds kStoreRetryMax{30};
 
+// The wait after `backoff`: doubled, up to kStoreRetryMax.
+std::chrono::seconds NextBackoff(std::chrono::seconds backoff) {
+  return std::min(2 * backoff, kStoreRetryMax);
+}
+
 google::protobuf::Timestamp Now() {
   return TimeUtil::GetCurrentTime();
 }
@@ -528,7 +533,7 @@ void JobManager::DispatchLoop() {
                             std::string(status.message()), startBackoff.count());
       queue_.insert(queue_.begin(), name);
       wake_.wait_for(lock, startBackoff, [&] { return stopping_; });
-      startBackoff = std::min(2 * startBackoff, kStoreRetryMax);
+      startBackoff = NextBackoff(startBackoff);
     };
     absl::StatusOr<std::optional<StoredJob>> stored = store_->Get(name);
     if (!stored.ok()) {
@@ -696,7 +701,7 @@ JobManager::Outcome JobManager::Execute(RunningJob& job) {
   absl::StatusOr<v1::Digest> digest = store();
   int tries = 1;
   for (auto backoff = kStoreRetryFirst; absl::IsResourceExhausted(digest.status());
-       backoff = std::min(2 * backoff, kStoreRetryMax)) {
+       backoff = NextBackoff(backoff)) {
     const std::string reason(digest.status().message());
     Logger("jobs")->warn("{}: volume not stored ({}); retrying in {} s", job.name, reason,
                          backoff.count());
@@ -833,7 +838,7 @@ void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
   };
   bool stored = false;
   int tries = 0;
-  for (auto backoff = kStoreRetryFirst;; backoff = std::min(2 * backoff, kStoreRetryMax)) {
+  for (auto backoff = kStoreRetryFirst;; backoff = NextBackoff(backoff)) {
     ++tries;
     std::unique_lock lock(mutex_);
     *record.mutable_update_time() = Now();

@@ -137,9 +137,7 @@ TEST(GarbageCollection, AVolumeWhoseJobsEndIsNotStoredYetStays) {
   ASSERT_TRUE(lock.WaitTaken(std::chrono::seconds(20)));
   // Once the end's first try has failed (the job says so), the volume waits for it, however long
   // (made to look old below).
-  for (int i = 0; i < 2000 && s.Get(created.name()).progress().waiting().empty(); ++i)
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  ASSERT_FALSE(s.Get(created.name()).progress().waiting().empty());
+  ASSERT_NE(s.WaitUntilWaiting(created.name()), "");
   fs::path volumeFile;  // the only blob: SmallJob has no input files
   std::error_code ec;
   for (const auto& entry : fs::recursive_directory_iterator(dataDir / "blobs", ec))

@@ -593,11 +593,7 @@ TEST(Service, AJobsEndIsAnnouncedOnlyOnceStored) {
       std::async(std::launch::async, [&] { return s.WaitFinal(created.name(), &messages); });
   ASSERT_TRUE(lock.WaitTaken(std::chrono::seconds(20)));
   // The end's first try waits out the busy timeout and fails; the job says so.
-  std::string waiting;
-  for (int i = 0; i < 2000 && waiting.empty(); ++i) {
-    waiting = s.Get(created.name()).progress().waiting();
-    if (waiting.empty()) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
+  const std::string waiting = s.WaitUntilWaiting(created.name());
   EXPECT_TRUE(absl::StartsWith(waiting, "waiting to store the job's end: ")) << waiting;
   EXPECT_EQ(watched.wait_for(std::chrono::seconds(0)), std::future_status::timeout);
   const auto released = steady_clock::now();
@@ -719,14 +715,9 @@ TEST(Service, AJobWaitingForDiskSpaceCanBeCancelledOrRestarted) {
   };
   TempDir dir;
   TestServer s(options, dir.path() / "data");
-  auto waitForWaiting = [&](const std::string& name) {
-    for (int i = 0; i < 1000 && s.Get(name).progress().waiting().empty(); ++i)
-      std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    EXPECT_FALSE(s.Get(name).progress().waiting().empty());
-  };
 
   const v1::BakeJob first = s.Create(SmallJob(3, 32));
-  waitForWaiting(first.name());
+  EXPECT_NE(s.WaitUntilWaiting(first.name()), "");
   v1::CancelBakeJobRequest cancel;
   cancel.set_name(first.name());
   v1::BakeJob answer;
@@ -737,7 +728,7 @@ TEST(Service, AJobWaitingForDiskSpaceCanBeCancelledOrRestarted) {
   EXPECT_EQ(cancelled.error().code(), int(grpc::StatusCode::CANCELLED));
 
   const v1::BakeJob second = s.Create(SmallJob(3, 33));
-  waitForWaiting(second.name());
+  EXPECT_NE(s.WaitUntilWaiting(second.name()), "");
   s.Stop();
   EXPECT_EQ(s.bakeStats().bakes.load(), 2);
   full = false;

@@ -2,6 +2,7 @@
 
 #include <fstream>
 #include <future>
+#include <thread>
 
 #include <grpcpp/generic/generic_stub.h>
 
@@ -237,6 +238,15 @@ v1::BakeJob TestServer::WaitFinal(const std::string& name, std::vector<v1::BakeJ
   grpc::Status status = reader->Finish();
   EXPECT_TRUE(status.ok()) << status.error_code() << " " << status.error_message();
   return last;
+}
+
+std::string TestServer::WaitUntilWaiting(const std::string& name) {
+  for (int i = 0; i < 2000; ++i) {
+    std::string waiting = Get(name).progress().waiting();
+    if (!waiting.empty()) return waiting;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return "";
 }
 
 v1::BakeJob TestServer::Get(const std::string& name) {

@@ -110,6 +110,8 @@ class TestServer {
   // Watches until a final state; `states` gets every message's state.
   v1::BakeJob WaitFinal(const std::string& name, std::vector<v1::BakeJob>* messages = nullptr);
   v1::BakeJob Get(const std::string& name);
+  // Polls the job until its progress.waiting is set (up to 20 s) and returns it ("" on timeout).
+  std::string WaitUntilWaiting(const std::string& name);
 
   // grpc.health.v1 Check of the whole server: 1 SERVING, 2 NOT_SERVING, -1 call failed.
   int Health();
