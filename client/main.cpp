@@ -272,6 +272,11 @@ int Fetch(Client& client, const v1::BakeJob& job, const std::string& out, Progre
       client.FetchBlob(job.result().volume(), out,
                        [&](int64_t done, int64_t total) { view.Bytes("fetch", done, total); });
   view.Done();
+  // The job says SUCCEEDED, so a volume the server cannot find is the server's loss, not bad
+  // input from the caller: exit 1, not 2.
+  if (absl::IsNotFound(fetched))
+    return Fail(kExitFailure, absl::StrCat(job.name(), ": the server no longer has its volume (",
+                                           fetched.message(), ")"));
   if (!fetched.ok()) return Fail(fetched, out);
   if (view.mode() == ProgressView::Mode::kJson)
     std::printf(

@@ -442,6 +442,19 @@ TEST(EndToEnd, FetchResumesAPartialDownloadAndRejectsACorruptOne) {
   EXPECT_FALSE(std::filesystem::exists(bad.string() + ".part"));
   EXPECT_EQ(Cli({"fetch", name, "--server", server.address(), "-o", bad.string()}).exitCode, 0);
   EXPECT_EQ(ReadFile(bad), bytes);
+  // A volume the server lost (its file removed behind its back) is the server's failure: exit 1,
+  // not 2 (bad input), and the message names the job.
+  int removed = 0;
+  for (const auto& entry :
+       std::filesystem::recursive_directory_iterator(dir.path() / "data" / "blobs"))
+    if (entry.is_regular_file() && ReadFile(entry.path()) == bytes)
+      removed += int(std::filesystem::remove(entry.path()));
+  ASSERT_EQ(removed, 1);
+  RunResult lost =
+      Cli({"fetch", name, "--server", server.address(), "-o", (dir.path() / "lost.vdb").string()});
+  EXPECT_EQ(lost.exitCode, 1) << lost.err;
+  EXPECT_NE(lost.err.find(name + ": the server no longer has its volume"), std::string::npos)
+      << lost.err;
 }
 
 TEST(EndToEnd, KilledMidBakeTheJobCompletesOnceWithTheSameBits) {
