@@ -287,6 +287,11 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
 
   const int maxBatches = int(std::min<int64_t>(settings.batches, settings.samplesPerProbe));
   const bool adaptive = settings.targetRelError > 0;
+  // Whether a sample can ever be non-zero: light to find, or delta light that a surface or a
+  // medium scatters into the samples.
+  const bool sampledMayBeNonZero =
+      lights.HasSampledEmission() ||
+      (!lights.deltaLights().empty() && (!job.scene.meshes.empty() || job.scene.medium));
 
   tbb::parallel_for(
       tbb::blocked_range<size_t>(0, todo.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
@@ -298,7 +303,7 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
           // thousands of rays, where keeping it would cost 24 bytes for every grid point.
           int moves;
           const Vec3d p = TraceOrigin(*tracer, site.local, &moves);
-          ProbeEstimate estimate(coeffs, maxBatches);
+          ProbeEstimate estimate(coeffs, maxBatches, sampledMayBeNonZero);
 
           // Delta lights project exactly (SPEC 3): c_i += (I / d^2) V Y_i(w), once per probe.
           TraceCounters exactCounters;

@@ -257,6 +257,15 @@ double LightSet::SpotFalloff(const LightData& l, const Vec3d& wFromLight) const 
   return SmoothStep(Dot(wFromLight, l.axis), l.cosOuter, l.cosInner);
 }
 
+bool LightSet::HasSampledEmission() const {
+  for (const LightData& l : lights_) {
+    const bool delta =
+        l.kind == Kind::kPoint || l.kind == Kind::kSpot || l.kind == Kind::kDirectional;
+    if (!delta && l.power > 0) return true;
+  }
+  return false;
+}
+
 double LightSet::LightImportance(const LightData& l, const Vec3d& p, const Vec3d* n) const {
   if (l.power <= 0) return 0;
   switch (l.kind) {

@@ -10,11 +10,12 @@
 
 namespace probebake {
 
-ProbeEstimate::ProbeEstimate(int coeffCount, int maxBatches)
+ProbeEstimate::ProbeEstimate(int coeffCount, int maxBatches, bool sampledMayBeNonZero)
     : coeffs_(coeffCount),
       sums_(size_t(maxBatches) * 3 * coeffCount, 0.0),
       counts_(maxBatches, 0),
-      exact_(size_t(3) * coeffCount, 0.0) {}
+      exact_(size_t(3) * coeffCount, 0.0),
+      sampledMayBeNonZero_(sampledMayBeNonZero) {}
 
 void ProbeEstimate::AddExact(int order, const Vec3d& wi, const Vec3d& radiance) {
   double y[kMaxShCoeffCount];
@@ -86,7 +87,9 @@ double ProbeEstimate::RelativeError(int batches) const {
   if (used < 2) return std::numeric_limits<double>::infinity();
   var *= double(used) / double(used - 1);
   const double se = std::sqrt(var);
-  if (se == 0) return 0;
+  // No spread. All batches black while light could be found: no evidence (0/0 is not 0).
+  if (se == 0)
+    return sampled == 0 && sampledMayBeNonZero_ ? std::numeric_limits<double>::infinity() : 0;
   return mean != 0 ? se / std::abs(mean) : std::numeric_limits<double>::infinity();
 }
 

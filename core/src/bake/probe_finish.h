@@ -7,6 +7,9 @@
 //   Var(m) ~= B / (B - 1) * sum_b (n_b / N)^2 (m_b - m)^2,
 // which is the textbook s^2 / B for equal batches. The stored std_error is sqrt(Var) / |m| of the
 // luminance of the L0 coefficient (exact delta-light terms add to m and not to the variance).
+// Batches that all saw nothing carry no evidence of the error: a dim probe lit through a small
+// opening reads 0 with no spread until a path finds the opening. Its error is then unknown
+// (+infinity), unless nothing sampled can ever be non-zero (ProbeEstimate's `sampledMayBeNonZero`).
 #pragma once
 
 #include <cstdint>
@@ -23,7 +26,10 @@ namespace probebake {
 
 class ProbeEstimate {
  public:
-  ProbeEstimate(int coeffCount, int maxBatches);
+  // sampledMayBeNonZero: false when the scene gives every sample zero by construction (no light
+  // to sample, and delta lights with no surface or medium to scatter them), so that identical
+  // all-zero batches are exact rather than unknown.
+  ProbeEstimate(int coeffCount, int maxBatches, bool sampledMayBeNonZero);
 
   // The running sum of batch b: coeffCount x 3 doubles, coefficient-major RGB.
   std::span<double> BatchSum(int b) {
@@ -39,7 +45,8 @@ class ProbeEstimate {
   // Standard error of every coefficient and channel (coeffCount x 3), same estimator as below.
   std::vector<double> CoefficientErrors(int batches) const;
   // Relative standard error of luminance(L0) from the first `batches` batches; +infinity with
-  // fewer than 2 batches, 0 for a black probe.
+  // fewer than 2 batches, with a zero mean, or when every sample was zero although the scene has
+  // light to find; 0 when every batch agrees otherwise (a uniform sky, an exact probe).
   double RelativeError(int batches) const;
 
  private:
@@ -47,6 +54,7 @@ class ProbeEstimate {
   std::vector<double> sums_;  // maxBatches x coeffs x 3
   std::vector<int64_t> counts_;
   std::vector<double> exact_;  // coeffs x 3
+  bool sampledMayBeNonZero_;
 };
 
 class ProbeFinisher {
