@@ -334,6 +334,29 @@ TEST(ValidateJobSpec, SampleAndDepthLimitsIncludePresets) {
                   .ok());
 }
 
+TEST(ValidateJobSpec, LimitsHoldForTheDefaultsOfSettingsLeftOut) {
+  // A job that leaves the numbers out gets order 2, 1024 samples and depth 8: an operator's
+  // limits below those must refuse it as they refuse the numbers given.
+  JobLimits limits;
+  limits.maxShOrder = 1;
+  limits.maxSamplesPerProbe = 64;
+  limits.maxDepth = 2;
+  std::string bare = Example();
+  for (const char* field : {"settings.shOrder", "settings.samplesPerProbe", "settings.maxDepth"})
+    bare = Patched(bare, field, "");
+  const absl::Status refused = Check(bare, limits);
+  EXPECT_TRUE(HasFieldError(refused, "settings.shOrder (default)", "2 is above the limit of 1"));
+  EXPECT_TRUE(HasFieldError(refused, "settings.samplesPerProbe (default)",
+                            "1024 samples per probe, above the limit of 64"));
+  EXPECT_TRUE(
+      HasFieldError(refused, "settings.maxDepth (default)", "maxDepth 8 is above the limit of 2"));
+  // The same job within limits that allow the defaults is fine.
+  limits.maxShOrder = 2;
+  limits.maxSamplesPerProbe = 1024;
+  limits.maxDepth = 8;
+  EXPECT_TRUE(Check(bare, limits).ok()) << Check(bare, limits);
+}
+
 TEST(ValidateJobSpec, WindowNeedsIrradiance) {
   const std::string noIrradiance = Patched(Example(), "settings.irradiance", "false");
   EXPECT_TRUE(HasFieldError(Check(Patched(noIrradiance, "settings.window", "\"HANNING\"")),

@@ -38,7 +38,7 @@ QualityPreset PresetFor(v1::BakeSettings::Quality quality) {
 BakeSettings ResolveSettings(const v1::BakeSettings& s) {
   const QualityPreset preset = PresetFor(s.quality());
   BakeSettings r;
-  r.shOrder = s.has_sh_order() ? s.sh_order() : 2;
+  r.shOrder = s.has_sh_order() ? s.sh_order() : kDefaultShOrder;
   r.samplesPerProbe = s.has_samples_per_probe() ? s.samples_per_probe() : preset.samplesPerProbe;
   r.maxDepth = s.has_max_depth() ? s.max_depth() : preset.maxDepth;
   r.targetRelError = s.has_target_rel_error() ? s.target_rel_error() : preset.targetRelError;

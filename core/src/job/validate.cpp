@@ -592,7 +592,13 @@ class Validator {
 
   void Settings(const v1::BakeSettings& s) {
     const std::string p = "settings";
-    if (s.has_sh_order()) {
+    if (!s.has_sh_order()) {
+      // A server's limits hold for what the job leaves to the defaults too.
+      if (Above(kDefaultShOrder, limits_.maxShOrder)) {
+        errors_.Add(p + ".shOrder (default)", Num(kDefaultShOrder) + " is above the limit of " +
+                                                  Num(limits_.maxShOrder) + ": give a lower one");
+      }
+    } else {
       const int order = s.sh_order();
       if (order < 0) {
         errors_.Add(p + ".shOrder", "must be >= 0 (got " + Num(order) + ")");
@@ -610,15 +616,19 @@ class Validator {
     const QualityPreset preset = PresetFor(s.quality());
     const std::string presetPath =
         p + ".quality (" + v1::BakeSettings::Quality_Name(s.quality()) + ")";
+    // Numbers left out come from the preset, or with none from the defaults (PresetFor): the
+    // limits hold for them as for given ones.
+    const bool hasPreset = s.quality() != v1::BakeSettings::QUALITY_UNSPECIFIED;
     if (s.has_samples_per_probe()) {
       SamplesLimit(s.samples_per_probe(), p + ".samplesPerProbe");
-    } else if (s.quality() != v1::BakeSettings::QUALITY_UNSPECIFIED) {
-      SamplesLimit(preset.samplesPerProbe, presetPath);
+    } else {
+      SamplesLimit(preset.samplesPerProbe,
+                   hasPreset ? presetPath : p + ".samplesPerProbe (default)");
     }
     if (s.has_max_depth()) {
       DepthLimit(s.max_depth(), p + ".maxDepth");
-    } else if (s.quality() != v1::BakeSettings::QUALITY_UNSPECIFIED) {
-      DepthLimit(preset.maxDepth, presetPath);
+    } else {
+      DepthLimit(preset.maxDepth, hasPreset ? presetPath : p + ".maxDepth (default)");
     }
     if (s.has_target_rel_error() && std::isfinite(s.target_rel_error()) &&
         !(s.target_rel_error() >= 0 && s.target_rel_error() < 1)) {

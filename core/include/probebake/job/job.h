@@ -67,6 +67,9 @@ struct QualityPreset {
   int maxDepth;
   double targetRelError;
 };
+// settings.shOrder when the job leaves it out.
+inline constexpr int kDefaultShOrder = 2;
+
 // The preset's numbers; QUALITY_UNSPECIFIED gives the defaults 1024 / 8 / 0 (no adaptive
 // sampling).
 QualityPreset PresetFor(v1::BakeSettings::Quality quality);
