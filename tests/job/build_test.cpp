@@ -197,6 +197,21 @@ TEST(ResolveGrid, SpacingNumberAndTriple) {
   EXPECT_EQ(t.spacing, Vec3d(0.3, 0.1, 2));
 }
 
+TEST(ResolveGrid, ASpacingGivesTheSameCountsFarFromTheOrigin) {
+  // 0.14 .. 0.36 at 0.01 is 23 probes; written around 200000 its extent over the spacing is
+  // 21.999999997 in double, which lost the last probe to a fixed 1e-9 tolerance.
+  for (const char* whole : {"0", "-1000", "200000", "-200000", "9999999"}) {
+    const bool negative = whole[0] == '-';
+    const std::string lo = std::string(whole) + (negative ? ".36" : ".14");
+    const std::string hi = std::string(whole) + (negative ? ".14" : ".36");
+    const ProbeGrid g = GridOf(R"({"min": [)" + lo + ", 0, " + lo + R"(], "max": [)" + hi +
+                               ", 1, " + hi + R"(], "spacing": [0.01, 0.3, 0.02]})");
+    EXPECT_EQ(g.counts[0], 23) << whole;
+    EXPECT_EQ(g.counts[1], 4) << whole;   // 1 / 0.3: max is not reached, near or far
+    EXPECT_EQ(g.counts[2], 12) << whole;  // 0.22 / 0.02 = 11
+  }
+}
+
 TEST(ResolveGrid, Placement) {
   EXPECT_EQ(GridOf(R"({"min": [0, 0, 0], "max": [1, 1, 1], "counts": [2, 2, 2]})").placement,
             Placement::kOutsideGeometry);

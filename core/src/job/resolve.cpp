@@ -160,7 +160,7 @@ ProbeGrid ResolveGrid(const v1::Grid& grid) {
       g.spacing[a] = v.kind_case() == google::protobuf::Value::kNumberValue
                          ? v.number_value()
                          : v.list_value().values(a).number_value();
-      g.counts[a] = int(job_internal::ProbesOnAxis(hi[a] - lo[a], g.spacing[a]));
+      g.counts[a] = int(job_internal::ProbesOnAxis(lo[a], hi[a], g.spacing[a]));
     }
   }
   switch (grid.placement()) {

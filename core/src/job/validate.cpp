@@ -508,7 +508,7 @@ class Validator {
       if (Spacing(grid.spacing(), &spacing) && ordered) {
         double probes = 1;
         for (int a = 0; a < 3; ++a) {
-          const double n = job_internal::ProbesOnAxis((*hi)[a] - (*lo)[a], spacing[a]);
+          const double n = job_internal::ProbesOnAxis((*lo)[a], (*hi)[a], spacing[a]);
           if (!(n <= double(std::numeric_limits<int32_t>::max()))) {
             errors_.Add(Index("grid.spacing", a),
                         "too fine: " + Num(n) + " probes on axis " + Num(a));
