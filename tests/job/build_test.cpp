@@ -219,10 +219,17 @@ TEST(ResolveGrid, Placement) {
                        "placement": "ALL"})")
                 .placement,
             Placement::kAll);
-  const ProbeGrid near = GridOf(R"({"min": [0, 0, 0], "max": [1, 1, 1], "counts": [2, 2, 2],
-                                    "placement": "NEAR_SURFACES", "surfaceDistance": 0.25})");
-  EXPECT_EQ(near.placement, Placement::kNearSurfaces);
-  EXPECT_EQ(near.surfaceDistance, 0.25);
+  // NEAR_SURFACES needs a mesh to be near.
+  const std::string withMesh = Patched(kGridOnly, "scene", R"({
+      "materials": [{"name": "m", "albedo": [0.5, 0.5, 0.5]}],
+      "meshes": [{"name": "t", "material": "m", "positions": [0, 0, 0, 1, 0, 0, 0, 1, 0],
+                  "indices": [0, 1, 2]}]})");
+  const absl::StatusOr<BakeJob> near =
+      BuildFromData(Patched(withMesh, "grid", R"({"min": [0, 0, 0], "max": [1, 1, 1],
+          "counts": [2, 2, 2], "placement": "NEAR_SURFACES", "surfaceDistance": 0.25})"));
+  ASSERT_TRUE(near.ok()) << near.status();
+  EXPECT_EQ(near->grid.placement, Placement::kNearSurfaces);
+  EXPECT_EQ(near->grid.surfaceDistance, 0.25);
 }
 
 // ---- Settings ----

@@ -261,9 +261,12 @@ TEST(ValidateJobSpec, GridSpacing) {
 TEST(ValidateJobSpec, NearSurfacesNeedsADistance) {
   EXPECT_TRUE(HasFieldError(CheckPatched("grid.placement", "\"NEAR_SURFACES\""),
                             "grid.surfaceDistance", "must be > 0 with placement NEAR_SURFACES"));
-  EXPECT_TRUE(Check(Patched(Patched(Example(), "grid.placement", "\"NEAR_SURFACES\""),
-                            "grid.surfaceDistance", "0.5"))
-                  .ok());
+  const std::string near = Patched(Patched(Example(), "grid.placement", "\"NEAR_SURFACES\""),
+                                   "grid.surfaceDistance", "0.5");
+  EXPECT_TRUE(Check(near).ok());
+  // With no meshes nothing is near a surface: refused rather than baked into an empty volume.
+  EXPECT_TRUE(HasFieldError(Check(Patched(near, "scene.meshes", "[]")), "grid.placement",
+                            "the scene has no meshes"));
 }
 
 TEST(ValidateJobSpec, ProbeLimit) {

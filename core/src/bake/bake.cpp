@@ -266,6 +266,13 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   const int64_t activeCount = int64_t(todo.size()) + resumed;
   if (options.resumeFrom && !resume)
     log->warn("resume data does not match this job; baking every probe");
+  // Not an error: a sub-grid of a sharded bake may lie wholly inside geometry, and its empty
+  // part still merges. But a whole grid that bakes nothing is most likely a mistake.
+  if (activeCount == 0)
+    log->warn("no probe to bake: the placement left out all {} grid points ({})", probeCount,
+              grid.placement == Placement::kNearSurfaces
+                  ? "inside geometry or farther than surfaceDistance from a mesh"
+                  : "inside geometry");
   log->info("placement: {} of {} probes active ({} resumed), {} invalid, {:.3f} s", activeCount,
             probeCount, resumed, std::count(volume.validity.begin(), volume.validity.end(), 0.0f),
             Seconds(start));

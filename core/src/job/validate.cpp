@@ -66,6 +66,12 @@ class Validator {
     } else {
       Grid(job.grid());
       if (errors_.ok()) VoxelVolume(ResolveGrid(job.grid()));
+      // Known up front to bake nothing: no surface for NEAR_SURFACES to be near.
+      if (job.grid().placement() == v1::Grid::NEAR_SURFACES && job.scene().meshes().empty()) {
+        errors_.Add("grid.placement",
+                    "NEAR_SURFACES keeps the probes near mesh surfaces, and the scene has no "
+                    "meshes: every probe would be left out (use ALL)");
+      }
     }
     Settings(job.settings());
     return errors_.ToStatus();
