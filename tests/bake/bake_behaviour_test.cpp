@@ -533,6 +533,23 @@ TEST(Extremes, ShadowRaysReachALargeTiltedLightAtTheLocalOrigin) {
   }
 }
 
+TEST(Extremes, ATiltedSquareAtTheSceneSpanLimitBakesRight) {
+  // The emissive square of the test above, as wide as kMaxSceneSpan allows on its widest axis,
+  // with the probe 1e-4 of its half-size below it (the tracer resolves it to ~2^-22 of that). Its
+  // vertices' products overflow float from ~1e13, where it vanished; the build refuses spans past
+  // 2e12 (build_test: ScenesSpanningMoreThanTheTracerHoldsAreRefused).
+  const Vec3d n = TiltedNormal();
+  const Framed f = Framed::FromZ(n);
+  double widest = 0;
+  for (int a = 0; a < 3; ++a) widest = std::max(widest, std::abs(f.s[a]) + std::abs(f.t[a]));
+  const double s = kMaxSceneSpan / (2 * widest);
+  const double h = 1e-4 * s;
+  BakeJob job = MakeJob(2, 4096, -n * h);
+  AddTiltedSquare(&job.scene, s, AddMaterial(&job.scene, {0, 0, 0}, {1, 1, 1}), false);
+  ExpectProjection(Probe(BakeOrDie(job), 0), CapProjection(2, n, 0), {1, 1, 1},
+                   "tilted emissive square at the span limit", 2 * kPi * (h / s) * 1.1);
+}
+
 TEST(Extremes, OrderEightAgainstACap) {
   BakeJob job = MakeJob(8, 8192);
   job.scene.lights.push_back(SphereLight{{0.5, 0.5, 1.5}, 0.6, {1, 1, 1}});

@@ -148,6 +148,32 @@ TEST(BuildBakeJob, ValidationRunsFirst) {
                             "scene.medium.g", "(-1, 1)"));
 }
 
+TEST(BuildBakeJob, ScenesSpanningMoreThanTheTracerHoldsAreRefused) {
+  // kMaxSceneSpan (2e12): the tracer's single-precision geometry about the scene's centre.
+  auto withScene = [](const std::string& meshes, const std::string& lights) {
+    return BuildFromData(Patched(kGridOnly, "scene",
+                                 R"({
+        "materials": [{"name": "m", "albedo": [0.5, 0.5, 0.5]}], "meshes": )" +
+                                     meshes + R"(, "lights": )" + lights + "}"));
+  };
+  auto square = [](const std::string& s) {
+    return R"([{"name": "floor", "material": "m", "positions": [-)" + s + ", -" + s + ", 0, " + s +
+           ", -" + s + ", 0, " + s + ", " + s + ", 0, -" + s + ", " + s +
+           R"(, 0], "indices": [0, 1, 2, 0, 2, 3]}])";
+  };
+  EXPECT_TRUE(withScene(square("1e12"), "[]").ok());  // spans exactly 2e12
+  EXPECT_TRUE(HasFieldError(withScene(square("1.5e12"), "[]").status(), "scene.meshes[0]",
+                            "spans 3e+12, more than the 2e+12 its single-precision tracer"));
+  // A unit room with a point light 1e13 away: the light is named, not the room it displaces.
+  const std::string far = R"([{"point": {"position": [0, 0, 1e13], "intensity": [1, 1, 1]}}])";
+  EXPECT_TRUE(HasFieldError(withScene(square("1"), far).status(), "scene.lights[0]",
+                            "reaches z = 1e+13, and scene.meshes[0] z = 0"));
+  // Directional lights have no position: any distance is fine.
+  EXPECT_TRUE(withScene(square("1"), R"([{"directional": {"direction": [0, 0, -1],
+                                          "irradiance": [1, 1, 1]}}])")
+                  .ok());
+}
+
 TEST(BuildBakeJob, UnusedFeaturesCostNothing) {
   std::string json = Patched(Example(), "scene.environment.uniform.radiance", "[0, 0, 0]");
   json = Patched(json, "scene.medium", R"({"sigmaA": [0, 0, 0], "sigmaS": [0, 0, 0]})");

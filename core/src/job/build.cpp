@@ -264,6 +264,52 @@ void AddLight(const Light& light, Box* box) {
   }
 }
 
+// Refuses a scene whose finite parts span more than kMaxSceneSpan on an axis. Of the two parts
+// holding its ends on the widest axis, it names the one farther from the median of the parts'
+// centres (the outlier: a stray vertex, a light far away), the upper one on a tie.
+absl::Status CheckSceneSpan(const Scene& scene) {
+  std::vector<std::pair<std::string, Box>> parts;
+  for (size_t i = 0; i < scene.meshes.size(); ++i) {
+    Box b;
+    for (const Vec3d& p : scene.meshes[i].positions) b.Add(p);
+    parts.emplace_back(Index("scene.meshes", int64_t(i)), b);
+  }
+  for (size_t i = 0; i < scene.lights.size(); ++i) {
+    Box b;
+    AddLight(scene.lights[i], &b);
+    if (b.lo.x <= b.hi.x) parts.emplace_back(Index("scene.lights", int64_t(i)), b);  // finite
+  }
+  if (parts.empty()) return absl::OkStatus();
+  Box all;
+  for (const auto& [path, b] : parts) all.Add(b.lo), all.Add(b.hi);
+  const Vec3d extent = all.hi - all.lo;
+  const int axis =
+      extent.x >= extent.y ? (extent.x >= extent.z ? 0 : 2) : (extent.y >= extent.z ? 1 : 2);
+  if (extent[axis] <= kMaxSceneSpan) return absl::OkStatus();
+  size_t low = 0, high = 0;
+  std::vector<double> centres;
+  for (size_t i = 0; i < parts.size(); ++i) {
+    if (parts[i].second.lo[axis] < parts[low].second.lo[axis]) low = i;
+    if (parts[i].second.hi[axis] > parts[high].second.hi[axis]) high = i;
+    centres.push_back(0.5 * (parts[i].second.lo[axis] + parts[i].second.hi[axis]));
+  }
+  std::sort(centres.begin(), centres.end());
+  const size_t n = centres.size();
+  const double median = 0.5 * (centres[(n - 1) / 2] + centres[n / 2]);
+  const bool highIsOut =
+      parts[high].second.hi[axis] - median >= median - parts[low].second.lo[axis];
+  const size_t out = highIsOut ? high : low, other = highIsOut ? low : high;
+  const char* name = axis == 0 ? "x" : axis == 1 ? "y" : "z";
+  const double at = highIsOut ? parts[out].second.hi[axis] : parts[out].second.lo[axis];
+  const double otherEnd = highIsOut ? parts[other].second.lo[axis] : parts[other].second.hi[axis];
+  return FieldError(parts[out].first,
+                    "reaches " + std::string(name) + " = " + Num(at) + ", and " +
+                        parts[other].first + " " + name + " = " + Num(otherEnd) +
+                        ": the scene spans " + Num(extent[axis]) + ", more than the " +
+                        Num(kMaxSceneSpan) +
+                        " its single-precision tracer holds (move or drop the far part)");
+}
+
 bool AllZero(const google::protobuf::RepeatedField<double>& f) {
   return std::all_of(f.begin(), f.end(), [](double x) { return x == 0; });
 }
@@ -336,6 +382,7 @@ absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource&
                                   canonical.mutable_meshes(i), &out));
   }
   for (const v1::Light& l : scene.lights()) out.lights.push_back(BuildLight(l));
+  PB_RETURN_IF_ERROR(CheckSceneSpan(out));
   PB_RETURN_IF_ERROR(BuildEnvironment(scene.environment(), assets, limits,
                                       canonical.mutable_environment(), &out.environment));
   if (!scene.has_environment()) canonical.clear_environment();

@@ -41,15 +41,15 @@ struct PointLight {
 
 struct SpotLight {
   Vec3d position;
-  Vec3d direction;  // unit, the direction light travels along the axis
-  Vec3d intensity;  // on the axis
+  Vec3d direction;      // unit, the direction light travels along the axis
+  Vec3d intensity;      // on the axis
   double cosInner = 1;  // cos of the inner half-angle: full intensity inside
   double cosOuter = 0;  // cos of the outer half-angle: zero outside; cosOuter <= cosInner
 };
 
 struct DirectionalLight {
-  Vec3d direction;   // unit, the direction light travels (into the scene)
-  Vec3d irradiance;  // on a surface facing the light
+  Vec3d direction;          // unit, the direction light travels (into the scene)
+  Vec3d irradiance;         // on a surface facing the light
   double cosHalfAngle = 1;  // cos of the source's angular radius; 1 = delta light
 };
 
@@ -102,6 +102,13 @@ struct Medium {
   double g = 0;          // Henyey-Greenstein mean cosine, (-1, 1)
   Vec3d boundsMin, boundsMax;
 };
+
+// The most a scene's finite parts (meshes, area, point and spot lights) may span on an axis, in
+// scene units. The tracer holds geometry in single precision about the scene's centre, and
+// Embree's triangle test multiplies three coordinates, which overflows float past ~1e13 from the
+// centre: a tilted emissive square 2e13 wide vanished, at 6e12 it baked right (tested at the
+// limit by bake test Extremes.ATiltedSquareAtTheSceneSpanLimitBakesRight).
+inline constexpr double kMaxSceneSpan = 2e12;
 
 struct Scene {
   std::vector<Material> materials;
