@@ -265,7 +265,31 @@ std::string GlbProblem(std::string_view bytes) {
     }
     at += 8 + size;
   }
-  return GltfNodeProblem(bytes.substr(20, u32(12)));  // the JSON chunk, which fits
+  const std::string_view json = bytes.substr(20, u32(12));  // the JSON chunk, which fits
+  if (std::string problem = GltfNodeProblem(json); !problem.empty()) return problem;
+  return GltfExternalBufferProblem(json);
+}
+
+std::string GltfExternalBufferProblem(std::string_view json) {
+  google::protobuf::Value root;
+  if (JsonNestsDeeperThan(json, 100) ||
+      !google::protobuf::util::JsonStringToMessage(std::string(json), &root).ok())
+    return "";
+  const auto& fields = root.struct_value().fields();
+  const auto buffers = fields.find("buffers");
+  if (buffers == fields.end()) return "";
+  const auto& list = buffers->second.list_value().values();
+  for (int i = 0; i < list.size(); ++i) {
+    const auto& buffer = list[i].struct_value().fields();
+    const auto uri = buffer.find("uri");
+    if (uri == buffer.end() || uri->second.kind_case() != google::protobuf::Value::kStringValue)
+      continue;  // a GLB's own binary chunk, or malformed (assimp's to refuse)
+    const std::string& value = uri->second.string_value();
+    if (value.rfind("data:", 0) == 0) continue;
+    return "buffer " + std::to_string(i) + " is the separate file \"" + value.substr(0, 200) +
+           "\", and glTF buffers must be embedded: export glTF Binary (.glb) or embedded .gltf";
+  }
+  return "";
 }
 
 std::string GltfNodeProblem(std::string_view json) {
@@ -318,7 +342,10 @@ std::string GltfNodeProblem(std::string_view json) {
 std::string MeshFileProblem(std::string_view bytes, const std::string& format) {
   if (format == "ply") return PlyProblem(bytes);
   if (format == "glb") return GlbProblem(bytes);
-  if (format == "gltf") return GltfNodeProblem(bytes);
+  if (format == "gltf") {
+    if (std::string problem = GltfNodeProblem(bytes); !problem.empty()) return problem;
+    return GltfExternalBufferProblem(bytes);
+  }
   return "";
 }
 

@@ -21,8 +21,8 @@ std::string PlyProblem(std::string_view bytes);
 
 // "" when `bytes` is a GLB container whose declared sizes fit: magic "glTF", version 1 or 2, a
 // total length no larger than the file, and (version 2) chunks that each fit in that length, the
-// first of them JSON that passes GltfNodeProblem; (version 1) content that fits. Otherwise the
-// reason.
+// first of them JSON that passes GltfNodeProblem and GltfExternalBufferProblem; (version 1)
+// content that fits. Otherwise the reason.
 std::string GlbProblem(std::string_view bytes);
 
 // "" unless the glTF JSON `json` (a .gltf file, or a GLB's JSON chunk) declares a node graph that
@@ -30,6 +30,12 @@ std::string GlbProblem(std::string_view bytes);
 // scene: 22 levels took 2.7 GB before assimp was stopped), a cycle, or nesting deeper than 1000.
 // JSON this check cannot parse is left to assimp.
 std::string GltfNodeProblem(std::string_view json);
+
+// "" unless the glTF JSON `json` names a buffer outside itself: a uri that is not a data: URI.
+// Assimp would open it through the file system, which a bake never lets it do (a server must
+// not open a path a request names, SPEC 8); the reason says so and how to embed it. JSON this
+// check cannot parse is left to assimp.
+std::string GltfExternalBufferProblem(std::string_view json);
 
 // The check of `format` ("ply", "glb", "gltf"; "" for formats without one, such as obj).
 std::string MeshFileProblem(std::string_view bytes, const std::string& format);
