@@ -608,9 +608,9 @@ class Validator {
       const int order = s.sh_order();
       if (order < 0) {
         errors_.Add(p + ".shOrder", "must be >= 0 (got " + Num(order) + ")");
-      } else if (order > kMaxShOrder) {
+      } else if (order > kMaxJobShOrder) {
         errors_.Add(p + ".shOrder",
-                    Num(order) + " is above the highest supported order, " + Num(kMaxShOrder));
+                    Num(order) + " is above the highest supported order, " + Num(kMaxJobShOrder));
       } else if (Above(order, limits_.maxShOrder)) {
         errors_.Add(p + ".shOrder",
                     Num(order) + " is above the limit of " + Num(limits_.maxShOrder));

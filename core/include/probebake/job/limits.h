@@ -3,15 +3,16 @@
 // with INVALID_ARGUMENT naming the field, never discovered mid-bake.
 //
 // 0 means "no limit" for every field, as in the proto; the baker's own bounds still apply (SH
-// orders 0 to kMaxShOrder, grid counts that fit an int32).
+// orders 0 to kMaxJobShOrder, grid counts that fit an int32).
 #pragma once
 
 #include <cstdint>
 
 namespace probebake {
 
-// The highest SH order the baker supports (SPEC 2).
-inline constexpr int kMaxShOrder = 8;
+// The highest SH order a job may ask for (SPEC 2: 0 to 8). The SH code itself goes to
+// kMaxShOrder (sh_basis.h, 9); the name differs so that no translation unit can see two values.
+inline constexpr int kMaxJobShOrder = 8;
 
 // The most a light may emit, in any unit (radiance, intensity, irradiance, emission, a map's
 // brightest pixel times its scale): the volume stores 32-bit floats (largest 3.4e38), and
@@ -27,8 +28,8 @@ struct JobLimits {
   int64_t maxTriangles = int64_t(1) << 24;
   // settings.samplesPerProbe (the sample cap of one probe).
   int64_t maxSamplesPerProbe = int64_t(1) << 24;
-  // settings.shOrder; never above kMaxShOrder whatever this says.
-  int maxShOrder = kMaxShOrder;
+  // settings.shOrder; never above kMaxJobShOrder whatever this says.
+  int maxShOrder = kMaxJobShOrder;
   // settings.maxDepth (bounces per path).
   int maxDepth = 1024;
   // Lights in scene.lights (emissive triangles are not counted).
