@@ -83,15 +83,21 @@ void ProgressView::Done() {
 }
 
 void ProgressView::Bar(const std::string& label, int64_t done, int64_t total, double elapsedSeconds,
-                       int64_t resumed, double etaSeconds, double errorEstimate) {
+                       int64_t resumed, double etaSeconds, double errorEstimate,
+                       int64_t errorUnknown) {
   constexpr int kWidth = 24;
   int filled = total > 0 ? int(kWidth * double(done) / double(total)) : 0;
   std::string bar = std::string(size_t(filled), '#') + std::string(size_t(kWidth - filled), '-');
   double rate = elapsedSeconds > 0 ? double(done - resumed) / elapsedSeconds : 0;
   std::string line = absl::StrFormat("%s [%s] %d/%d probes  %.1f probes/s  ETA %s", label, bar,
                                      done, total, rate, FormatDuration(etaSeconds));
-  if (errorEstimate >= 0)
+  // Probes of unknown error are named, not averaged in (nor hidden).
+  if (errorEstimate >= 0) {
     absl::StrAppend(&line, absl::StrFormat("  err %.2f%%", 100 * errorEstimate));
+    if (errorUnknown > 0) absl::StrAppend(&line, absl::StrFormat(" (%d unknown)", errorUnknown));
+  } else if (errorUnknown > 0) {
+    absl::StrAppend(&line, absl::StrFormat("  err unknown (%d probes)", errorUnknown));
+  }
   Redraw(line);
 }
 
@@ -117,21 +123,23 @@ void ProgressView::Update(const v1::BakeJob& job) {
   Bar(job.name(), p.probes_done(), p.probes_total(),
       double(TimeUtil::DurationToMilliseconds(p.elapsed())) / 1000.0, p.probes_resumed(),
       p.has_eta() ? double(TimeUtil::DurationToMilliseconds(p.eta())) / 1000.0 : -1,
-      p.has_error_estimate() ? p.error_estimate() : -1);
+      p.has_error_estimate() ? p.error_estimate() : -1, p.probes_error_unknown());
 }
 
 void ProgressView::Update(const BakeProgress& p) {
   if (mode_ == Mode::kJson) {
     std::printf(
         "{\"probesDone\":%lld,\"probesTotal\":%lld,\"samples\":%lld,\"rays\":%lld,"
-        "\"elapsedSeconds\":%.3f,\"etaSeconds\":%.3f,\"errorEstimate\":%.6g}\n",
+        "\"elapsedSeconds\":%.3f,\"etaSeconds\":%.3f,\"errorEstimate\":%.6g,"
+        "\"probesErrorUnknown\":%lld}\n",
         (long long)p.probesDone, (long long)p.probesTotal, (long long)p.samples, (long long)p.rays,
-        p.elapsedSeconds, p.etaSeconds, p.errorEstimate);
+        p.elapsedSeconds, p.etaSeconds, p.errorEstimate, (long long)p.probesErrorUnknown);
     std::fflush(stdout);
     return;
   }
   if (mode_ == Mode::kLines) return;  // a summary line follows the bake
-  Bar("bake", p.probesDone, p.probesTotal, p.elapsedSeconds, 0, p.etaSeconds, p.errorEstimate);
+  Bar("bake", p.probesDone, p.probesTotal, p.elapsedSeconds, 0, p.etaSeconds, p.errorEstimate,
+      p.probesErrorUnknown);
 }
 
 void ProgressView::Bytes(const std::string& label, int64_t done, int64_t total) {

@@ -35,7 +35,7 @@ class ProgressView {
 
  private:
   void Bar(const std::string& label, int64_t done, int64_t total, double elapsedSeconds,
-           int64_t resumed, double etaSeconds, double errorEstimate);
+           int64_t resumed, double etaSeconds, double errorEstimate, int64_t errorUnknown);
   void Redraw(const std::string& line);
 
   Mode mode_;

@@ -758,6 +758,7 @@ void JobManager::OnProgress(RunningJob& job, const BakeProgress& progress) {
     p->set_error_estimate(progress.errorEstimate);
   else
     p->clear_error_estimate();
+  p->set_probes_error_unknown(progress.probesErrorUnknown);
   p->set_probes_resumed(job.probesResumed);
   *job.record.mutable_update_time() = Now();
   NotifyLocked(job.record);

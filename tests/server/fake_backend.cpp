@@ -71,6 +71,7 @@ absl::StatusOr<ProbeVolume> FakeBake(const BakeJob& job, const BakeOptions& opti
     p.elapsedSeconds = elapsed();
     p.etaSeconds = double(probes - doneCount) * std::chrono::duration<double>(probeDelay).count();
     p.errorEstimate = 0.01;
+    p.probesErrorUnknown = doneCount / 8;  // one probe in 8 "black so far"
     options.progress(p);
   };
   int64_t doneCount = 0;

@@ -181,6 +181,8 @@ TEST(Service, SubmitWatchFetch) {
   EXPECT_EQ(final.result().source_job(), created.name());
   EXPECT_EQ(final.attempts(), 1);
   EXPECT_EQ(final.progress().probes_done(), probes);
+  EXPECT_EQ(final.progress().error_estimate(), 0.01);
+  EXPECT_EQ(final.progress().probes_error_unknown(), probes / 8);  // the fake's count
   EXPECT_TRUE(final.has_end_time());
   // States only move forward; progress never goes back.
   int64_t lastDone = 0;

@@ -73,6 +73,8 @@ class Reporter {
     if (std::isfinite(relError)) {
       errorSum_ += relError;
       ++errorCount_;
+    } else {
+      ++errorUnknown_;
     }
   }
 
@@ -123,6 +125,7 @@ class Reporter {
       std::lock_guard lock(mutex_);
       p.probesDone = probesDone_;
       p.errorEstimate = errorCount_ ? errorSum_ / double(errorCount_) : -1;
+      p.probesErrorUnknown = errorUnknown_;
     }
     p.probesTotal = total_;
     p.samples = counters_.samples.load(std::memory_order_relaxed);
@@ -146,7 +149,7 @@ class Reporter {
   std::mutex mutex_;
   std::condition_variable wake_;
   bool stopped_ = false;
-  int64_t probesDone_ = 0, errorCount_ = 0;
+  int64_t probesDone_ = 0, errorCount_ = 0, errorUnknown_ = 0;
   double errorSum_ = 0;
   std::thread thread_;
 };

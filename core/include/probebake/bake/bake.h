@@ -22,8 +22,12 @@ struct BakeProgress {
   int64_t samples = 0;
   int64_t rays = 0;
   double elapsedSeconds = 0;
-  double etaSeconds = -1;     // < 0: unknown
-  double errorEstimate = -1;  // mean relative standard error of finished probes; < 0: unknown
+  double etaSeconds = -1;  // < 0: unknown
+  // Mean relative standard error of the finished probes whose error is known; < 0: none is.
+  double errorEstimate = -1;
+  // Finished probes whose error is unknown (std_error inf: a single batch, or every sample black
+  // while the scene has light to find), left out of errorEstimate.
+  int64_t probesErrorUnknown = 0;
 };
 
 struct BakeOptions {
