@@ -238,6 +238,23 @@ TEST(ResolveGrid, ASpacingGivesTheSameCountsFarFromTheOrigin) {
   }
 }
 
+TEST(ResolveGrid, ASpacingNearTheCoordinatesPrecisionIsRefusedOrCountedExactly) {
+  // At 1e12 a double steps by 1.2e-4. A spacing of 0.001 (8 steps) gained a probe past max from
+  // the rounding tolerance and at 1e14 failed in OpenVDB after the bake: refused up front, naming
+  // the field. 0.1 (800 steps) is at least 2^-44 of the coordinates: counted exactly.
+  const std::string tooFine =
+      R"({"min": [1e12, 0, 0], "max": [1000000000001, 1, 1], "spacing": [0.001, 0.5, 0.5]})";
+  EXPECT_TRUE(HasFieldError(BuildFromData(Patched(kGridOnly, "grid", tooFine)).status(),
+                            "grid.spacing[0]", "probe spacing 0.001 is too fine for coordinates"));
+  const std::string tooManyCounts =
+      R"({"min": [0, 0, 1e14], "max": [1, 1, 100000000000001], "counts": [2, 2, 1001]})";
+  EXPECT_TRUE(HasFieldError(BuildFromData(Patched(kGridOnly, "grid", tooManyCounts)).status(),
+                            "grid.counts[2]", "is too fine for coordinates"));
+  const ProbeGrid g =
+      GridOf(R"({"min": [1e12, 0, 0], "max": [1000000000001, 1, 1], "spacing": [0.1, 0.5, 0.5]})");
+  EXPECT_EQ(g.counts[0], 11);
+}
+
 TEST(ResolveGrid, Placement) {
   EXPECT_EQ(GridOf(R"({"min": [0, 0, 0], "max": [1, 1, 1], "counts": [2, 2, 2]})").placement,
             Placement::kOutsideGeometry);

@@ -66,6 +66,8 @@ class Validator {
     } else {
       Grid(job.grid());
       if (errors_.ok()) VoxelVolume(ResolveGrid(job.grid()));
+      if (errors_.ok())
+        SpacingPrecision(ResolveGrid(job.grid()), job_internal::HasSpacing(job.grid()));
       // Known up front to bake nothing: no surface for NEAR_SURFACES to be near.
       if (job.grid().placement() == v1::Grid::NEAR_SURFACES && job.scene().meshes().empty()) {
         errors_.Add("grid.placement",
@@ -553,6 +555,24 @@ class Validator {
                               Num(g.spacing.z) +
                               ") is too fine for an OpenVDB grid, whose voxel volume (the "
                               "product of the three spacings) must be at least 3e-15");
+    }
+  }
+
+  // A spacing must be at least 2^-44 of the coordinates on its axis, 256 ulps of their double:
+  // probe positions are then exact to 1/256 of a spacing, and the count a spacing gives cannot gain
+  // a probe past max from rounding (grid_internal.h: its tolerance stays under 2^-5 of one). At
+  // 1e12 with spacing 0.001 (8 ulps) the count gained a probe past max; at 1e14 OpenVDB refused
+  // the transform after the bake.
+  void SpacingPrecision(const ProbeGrid& g, bool hasSpacing) {
+    constexpr double kMinRelativeSpacing = 0x1p-44;
+    for (int a = 0; a < 3; ++a) {
+      const double last = g.origin[a] + g.spacing[a] * (g.counts[a] - 1);
+      const double magnitude = std::max(std::abs(g.origin[a]), std::abs(last));
+      if (g.spacing[a] >= kMinRelativeSpacing * magnitude) continue;
+      errors_.Add(Index(hasSpacing ? "grid.spacing" : "grid.counts", a),
+                  "probe spacing " + Num(g.spacing[a]) + " is too fine for coordinates of " +
+                      Num(magnitude) + ": double precision needs at least " +
+                      Num(kMinRelativeSpacing * magnitude) + " there (2^-44 of them)");
     }
   }
 
