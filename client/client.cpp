@@ -382,7 +382,11 @@ absl::Status Client::FetchBlob(const v1::Digest& digest, const std::filesystem::
     errno = 0;
     file.close();
     const int closeError = errno;
-    PB_RETURN_IF_ERROR(FromGrpc(reader->Finish()));
+    if (absl::Status finished = FromGrpc(reader->Finish()); !finished.ok()) {
+      // Keep what arrived for a resumed fetch, but no empty file for a download that never began.
+      if (have == 0) std::filesystem::remove(part, ec);
+      return finished;
+    }
     if (!file) return writeFailed(closeError);
   }
   if (have != digest.size_bytes())
@@ -391,8 +395,9 @@ absl::Status Client::FetchBlob(const v1::Digest& digest, const std::filesystem::
   PB_ASSIGN_OR_RETURN(std::string hash, server::Sha256OfFile(part));
   if (hash != digest.hash()) {
     std::filesystem::remove(part, ec);
-    return absl::DataLossError(absl::StrCat("the download hashes to ", hash, ", not ",
-                                            digest.hash(), "; removed, run fetch again"));
+    return absl::DataLossError(absl::StrCat(
+        "the download hashes to ", hash, ", not ", digest.hash(),
+        "; removed, run fetch again (if it happens again, the server's copy is damaged)"));
   }
   std::filesystem::rename(part, out, ec);
   if (ec)

@@ -455,6 +455,7 @@ TEST(EndToEnd, FetchResumesAPartialDownloadAndRejectsACorruptOne) {
   EXPECT_EQ(lost.exitCode, 1) << lost.err;
   EXPECT_NE(lost.err.find(name + ": the server no longer has its volume"), std::string::npos)
       << lost.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / "lost.vdb.part"));  // nothing began
 }
 
 TEST(EndToEnd, KilledMidBakeTheJobCompletesOnceWithTheSameBits) {
