@@ -364,14 +364,17 @@ TEST(Adaptive, AProbeThatHasSeenNoLightYetSamplesOn) {
   EXPECT_NEAR(last.errorEstimate, knownSum / (64 - unknown), 1e-6 * last.errorEstimate);
 }
 
-// Where no sample can be non-zero (a point light with nothing to scatter it, or no light at all),
-// black batches are exact: error 0, and an adaptive bake stops at its first confirming round.
+// Where no sample can be non-zero (a point light with nothing to scatter it: no mesh, or black
+// ones; or no light at all), black batches are exact: error 0, and an adaptive bake stops at its
+// first confirming round.
 TEST(Adaptive, AProbeWhoseSamplesAreZeroByConstructionIsExact) {
   for (const bool pointLight : {true, false}) {
     BakeJob job = MakeJob(2, 512, {0, 0, 0});
     job.settings.batches = 64;
     job.settings.targetRelError = 0.05;
     if (pointLight) job.scene.lights.push_back(PointLight{{0, 0, 2}, {10, 10, 10}});
+    AddQuad(&job.scene, {-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1},
+            AddMaterial(&job.scene, {0, 0, 0}));  // a black floor scatters nothing
     const ProbeVolume v = BakeOrDie(job);
     EXPECT_EQ(v.stdError[0], 0.0f) << "point light: " << pointLight;
     EXPECT_EQ(v.sampleCount[0], 10 * 512 / 64) << "point light: " << pointLight;

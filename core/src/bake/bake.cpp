@@ -299,9 +299,11 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   const bool adaptive = settings.targetRelError > 0;
   // Whether a sample can ever be non-zero: light to find, or delta light that a surface or a
   // medium scatters into the samples.
+  bool scatters = job.scene.medium && MaxComponent(job.scene.medium->sigmaS) > 0;
+  for (const TriangleMesh& mesh : job.scene.meshes)
+    scatters = scatters || MaxComponent(job.scene.materials[mesh.material].albedo) > 0;
   const bool sampledMayBeNonZero =
-      lights.HasSampledEmission() ||
-      (!lights.deltaLights().empty() && (!job.scene.meshes.empty() || job.scene.medium));
+      lights.HasEmission(/*delta=*/false) || (lights.HasEmission(/*delta=*/true) && scatters);
 
   tbb::parallel_for(
       tbb::blocked_range<size_t>(0, todo.size(), 1), [&](const tbb::blocked_range<size_t>& range) {

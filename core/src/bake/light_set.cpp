@@ -257,11 +257,11 @@ double LightSet::SpotFalloff(const LightData& l, const Vec3d& wFromLight) const 
   return SmoothStep(Dot(wFromLight, l.axis), l.cosOuter, l.cosInner);
 }
 
-bool LightSet::HasSampledEmission() const {
+bool LightSet::HasEmission(bool delta) const {
   for (const LightData& l : lights_) {
-    const bool delta =
+    const bool isDelta =
         l.kind == Kind::kPoint || l.kind == Kind::kSpot || l.kind == Kind::kDirectional;
-    if (!delta && l.power > 0) return true;
+    if (isDelta == delta && l.power > 0) return true;
   }
   return false;
 }

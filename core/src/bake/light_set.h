@@ -123,9 +123,9 @@ class LightSet {
   // Radiance weight and direction of delta light `light` at p: false if it cannot reach p.
   bool EvalDelta(uint32_t light, const Vec3d& p, LightSample* sample) const;
   const std::vector<uint32_t>& deltaLights() const { return deltaLights_; }
-  // True when a light other than the delta ones emits (area, emissive mesh, sun, environment):
-  // something a path or a light sample can find.
-  bool HasSampledEmission() const;
+  // True when a delta light (delta = true) or any other light (false: area, emissive mesh, sun,
+  // environment; what a path or a light sample can find) emits.
+  bool HasEmission(bool delta) const;
 
   // Radiance of the environment alone (escaped rays with no MIS, e.g. the naive estimator).
   const EnvironmentLight* environment() const { return environment_.get(); }

@@ -27,8 +27,8 @@ namespace probebake {
 class ProbeEstimate {
  public:
   // sampledMayBeNonZero: false when the scene gives every sample zero by construction (no light
-  // to sample, and delta lights with no surface or medium to scatter them), so that identical
-  // all-zero batches are exact rather than unknown.
+  // to sample, and delta lights with nothing to scatter them: no mesh of non-zero albedo, no
+  // scattering medium), so that identical all-zero batches are exact rather than unknown.
   ProbeEstimate(int coeffCount, int maxBatches, bool sampledMayBeNonZero);
 
   // The running sum of batch b: coeffCount x 3 doubles, coefficient-major RGB.
