@@ -1,6 +1,9 @@
 #include "client/client.h"
 
+#include <fcntl.h>
 #include <openssl/rand.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
@@ -9,6 +12,7 @@
 #include <map>
 #include <thread>
 
+#include "absl/cleanup/cleanup.h"
 #include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
@@ -341,20 +345,44 @@ absl::StatusOr<v1::BakeJob> Client::Watch(const std::string& name,
   }
 }
 
+std::filesystem::path Client::PartialPath(const std::filesystem::path& out,
+                                          const v1::Digest& digest) {
+  std::filesystem::path part = out;
+  // (StrCat, not "." + ...: GCC 12 warns falsely there, -Wrestrict.)
+  part += absl::StrCat(".", digest.hash().substr(0, 12), ".part");
+  return part;
+}
+
 absl::Status Client::FetchBlob(const v1::Digest& digest, const std::filesystem::path& out,
                                const std::function<void(int64_t, int64_t)>& onBytes) {
-  std::filesystem::path part = out;
-  part += ".part";
+  const std::filesystem::path part = PartialPath(out, digest);
+  const int lockFd = ::open(part.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (lockFd < 0) {
+    return absl::InternalError(
+        absl::StrCat(part.string(), ": cannot write: ", std::strerror(errno)));
+  }
+  absl::Cleanup unlock = [lockFd] { ::close(lockFd); };
+  if (::flock(lockFd, LOCK_EX | LOCK_NB) != 0) {
+    return absl::AbortedError(absl::StrCat("another fetch is downloading to ", out.string(), " (",
+                                           part.string(), " is locked)"));
+  }
   std::error_code ec;
   int64_t have =
       std::filesystem::exists(part, ec) ? int64_t(std::filesystem::file_size(part, ec)) : 0;
   if (ec || have > digest.size_bytes()) {
-    std::filesystem::remove(part, ec);
+    // Emptied in place, not removed: the lock is on this file.
+    if (::ftruncate(lockFd, 0) != 0) {
+      return absl::InternalError(
+          absl::StrCat(part.string(), ": cannot write: ", std::strerror(errno)));
+    }
     have = 0;
   }
   if (have < digest.size_bytes()) {
     std::ofstream file(part, std::ios::binary | std::ios::app);
-    if (!file) return absl::InvalidArgumentError(absl::StrCat(part.string(), ": cannot write"));
+    if (!file) {
+      return absl::InternalError(
+          absl::StrCat(part.string(), ": cannot write: ", std::strerror(errno)));
+    }
     v1::ReadBlobRequest request;
     *request.mutable_digest() = digest;
     request.set_read_offset(have);
@@ -400,8 +428,7 @@ absl::Status Client::FetchBlob(const v1::Digest& digest, const std::filesystem::
         "; removed, run fetch again (if it happens again, the server's copy is damaged)"));
   }
   std::filesystem::rename(part, out, ec);
-  if (ec)
-    return absl::InvalidArgumentError(absl::StrCat(out.string(), ": cannot write: ", ec.message()));
+  if (ec) return absl::InternalError(absl::StrCat(out.string(), ": cannot write: ", ec.message()));
   return absl::OkStatus();
 }
 

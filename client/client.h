@@ -87,9 +87,14 @@ class Client {
                                     const std::function<void(const v1::BakeJob&)>& onUpdate,
                                     std::chrono::seconds reconnectFor = std::chrono::seconds(120));
 
-  // Downloads the blob to `out`: bytes go to "<out>.part", which a later call continues from its
-  // size; when complete the file's SHA-256 is checked and it is renamed to `out`. `onBytes` gets
+  // Downloads the blob to `out`: bytes go to PartialPath(out, digest), which a later call for the
+  // same blob continues from its size (a partial file of another blob is never taken up), held
+  // under an exclusive lock so that a second fetch to the same path fails at once (ABORTED) rather
+  // than writing into it; when complete the file's SHA-256 is checked and it is renamed to `out`.
+  // Write errors are INTERNAL, with the system's reason. `onBytes` gets
   // the bytes received so far.
+  static std::filesystem::path PartialPath(const std::filesystem::path& out,
+                                           const v1::Digest& digest);
   absl::Status FetchBlob(const v1::Digest& digest, const std::filesystem::path& out,
                          const std::function<void(int64_t done, int64_t total)>& onBytes = {});
 

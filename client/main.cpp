@@ -86,7 +86,8 @@ void AddClientFlags(CLI::App* command, ClientFlags* flags) {
   command->add_option("--server", flags->server,
                       "Server host:port (default $PROBEBAKE_SERVER or 127.0.0.1:50051)");
   command->add_option("--token-file", flags->tokenFile,
-                      "File with the bearer token (default: $PROBEBAKE_TOKEN)");
+                      "File with the bearer token (without it: the token itself from "
+                      "$PROBEBAKE_TOKEN)");
   command->add_flag("--tls", flags->tls, "Connect with TLS (system roots unless --tls-ca)");
   command->add_option("--tls-ca", flags->tlsCa, "PEM root certificates for TLS");
   command->add_flag("--json", flags->json, "One JSON object per line on stdout");
@@ -381,6 +382,9 @@ int RunStatus(const ClientFlags& flags, const std::string& name) {
 }
 
 int RunFetch(const ClientFlags& flags, const std::string& name, const std::string& out) {
+  // A path that cannot take the volume (a missing folder, a directory) is refused before the
+  // download, as bake and submit refuse it before the bake.
+  if (const int code = CheckOutput(out); code != kExitOk) return code;
   auto client = ConnectFrom(flags);
   if (!client.ok()) return Fail(client.status());
   absl::StatusOr<v1::BakeJob> job = (*client)->GetJob(name);

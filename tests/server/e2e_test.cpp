@@ -3,7 +3,10 @@
 // probebake CLI run as a user would. Small jobs (18 to 64 probes, few samples) keep it fast.
 #include <gtest/gtest.h>
 
+#include <fcntl.h>
 #include <signal.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstring>
@@ -425,21 +428,22 @@ TEST(EndToEnd, FetchResumesAPartialDownloadAndRejectsACorruptOne) {
   ASSERT_GT(bytes.size(), 1000u);
   // A download broken after 1000 bytes continues from there.
   auto out = dir.path() / "resumed.vdb";
-  std::ofstream(out.string() + ".part", std::ios::binary) << bytes.substr(0, 1000);
+  const std::string partSuffix = "." + Sha256Hex(bytes).substr(0, 12) + ".part";
+  std::ofstream(out.string() + partSuffix, std::ios::binary) << bytes.substr(0, 1000);
   RunResult resumed = Cli({"fetch", name, "--server", server.address(), "-o", out.string()});
   ASSERT_EQ(resumed.exitCode, 0) << resumed.err;
   EXPECT_EQ(ReadFile(out), bytes);
-  EXPECT_FALSE(std::filesystem::exists(out.string() + ".part"));
+  EXPECT_FALSE(std::filesystem::exists(out.string() + partSuffix));
   // A partial file with wrong bytes fails the digest check, is removed, and a retry succeeds.
   auto bad = dir.path() / "bad.vdb";
   std::string wrong = bytes.substr(0, 1000);
   wrong[10] ^= 0x55;
-  std::ofstream(bad.string() + ".part", std::ios::binary) << wrong;
+  std::ofstream(bad.string() + partSuffix, std::ios::binary) << wrong;
   RunResult corrupt = Cli({"fetch", name, "--server", server.address(), "-o", bad.string()});
   EXPECT_NE(corrupt.exitCode, 0);
   EXPECT_NE(corrupt.err.find("hashes to"), std::string::npos) << corrupt.err;
   EXPECT_FALSE(std::filesystem::exists(bad));
-  EXPECT_FALSE(std::filesystem::exists(bad.string() + ".part"));
+  EXPECT_FALSE(std::filesystem::exists(bad.string() + partSuffix));
   EXPECT_EQ(Cli({"fetch", name, "--server", server.address(), "-o", bad.string()}).exitCode, 0);
   EXPECT_EQ(ReadFile(bad), bytes);
   // A volume the server lost (its file removed behind its back) is the server's failure: exit 1,
@@ -455,7 +459,44 @@ TEST(EndToEnd, FetchResumesAPartialDownloadAndRejectsACorruptOne) {
   EXPECT_EQ(lost.exitCode, 1) << lost.err;
   EXPECT_NE(lost.err.find(name + ": the server no longer has its volume"), std::string::npos)
       << lost.err;
-  EXPECT_FALSE(std::filesystem::exists(dir.path() / "lost.vdb.part"));  // nothing began
+  EXPECT_FALSE(std::filesystem::exists(dir.path() / ("lost.vdb" + partSuffix)));  // none began
+}
+
+TEST(EndToEnd, FetchTakesUpOnlyItsOwnPartialDownload) {
+  TempDir dir;
+  auto job = WriteJob(dir.path(), "job.json", 3, 3, 2, 64);
+  ServerProcess server(dir.path());
+  RunResult submit = Cli({"submit", job.string(), "--server", server.address(), "--wait"});
+  ASSERT_EQ(submit.exitCode, 0) << submit.err;
+  const std::string name = JobName(submit.out);
+  auto full = dir.path() / "full.vdb";
+  ASSERT_EQ(Cli({"fetch", name, "--server", server.address(), "-o", full.string()}).exitCode, 0);
+  const std::string bytes = ReadFile(full);
+  const std::string part = "." + Sha256Hex(bytes).substr(0, 12) + ".part";
+  // Partial files of other downloads to the same path (an interrupted fetch of another job, the
+  // old naming) are not taken up: the first fetch succeeds.
+  auto out = dir.path() / "out.vdb";
+  std::ofstream(out.string() + ".part", std::ios::binary) << std::string(1000, 'x');
+  std::ofstream(out.string() + ".0123456789ab.part", std::ios::binary) << std::string(1000, 'y');
+  RunResult first = Cli({"fetch", name, "--server", server.address(), "-o", out.string()});
+  ASSERT_EQ(first.exitCode, 0) << first.err;
+  EXPECT_EQ(ReadFile(out), bytes);
+  // A second fetch to a path another is downloading to fails at once (exit 1) and leaves the
+  // other's partial file alone.
+  auto busy = dir.path() / "busy.vdb";
+  std::ofstream(busy.string() + part, std::ios::binary) << bytes.substr(0, 1000);
+  const int held = ::open((busy.string() + part).c_str(), O_RDWR);
+  ASSERT_GE(held, 0);
+  ASSERT_EQ(::flock(held, LOCK_EX | LOCK_NB), 0);
+  RunResult second = Cli({"fetch", name, "--server", server.address(), "-o", busy.string()});
+  EXPECT_EQ(second.exitCode, 1) << second.err;
+  EXPECT_NE(second.err.find("another fetch is downloading to"), std::string::npos) << second.err;
+  EXPECT_EQ(ReadFile(busy.string() + part), bytes.substr(0, 1000));
+  ::close(held);
+  // A directory as the output is refused before the download (exit 2), writing nothing.
+  RunResult intoDir = Cli({"fetch", name, "--server", server.address(), "-o", dir.path().string()});
+  EXPECT_EQ(intoDir.exitCode, 2) << intoDir.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.path().string() + part));
 }
 
 TEST(EndToEnd, KilledMidBakeTheJobCompletesOnceWithTheSameBits) {
