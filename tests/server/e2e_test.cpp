@@ -415,7 +415,7 @@ TEST(EndToEnd, TlsWithToken) {
   EXPECT_EQ(submit.exitCode, 0) << submit.err;
 }
 
-TEST(EndToEnd, FetchResumesAPartialDownloadAndRejectsACorruptOne) {
+TEST(EndToEnd, FetchResumesOnlyItsOwnPartialDownloadAndRejectsACorruptOne) {
   TempDir dir;
   auto job = WriteJob(dir.path(), "job.json", 3, 3, 2, 64);
   ServerProcess server(dir.path());
@@ -446,6 +446,30 @@ TEST(EndToEnd, FetchResumesAPartialDownloadAndRejectsACorruptOne) {
   EXPECT_FALSE(std::filesystem::exists(bad.string() + partSuffix));
   EXPECT_EQ(Cli({"fetch", name, "--server", server.address(), "-o", bad.string()}).exitCode, 0);
   EXPECT_EQ(ReadFile(bad), bytes);
+  // Partial files of other downloads to the same path (an interrupted fetch of another job, the
+  // old naming) are not taken up: the first fetch succeeds.
+  auto other = dir.path() / "other.vdb";
+  std::ofstream(other.string() + ".part", std::ios::binary) << std::string(1000, 'x');
+  std::ofstream(other.string() + ".0123456789ab.part", std::ios::binary) << std::string(1000, 'y');
+  RunResult first = Cli({"fetch", name, "--server", server.address(), "-o", other.string()});
+  ASSERT_EQ(first.exitCode, 0) << first.err;
+  EXPECT_EQ(ReadFile(other), bytes);
+  // A second fetch to a path another is downloading to fails at once (exit 1) and leaves the
+  // other's partial file alone.
+  auto busy = dir.path() / "busy.vdb";
+  std::ofstream(busy.string() + partSuffix, std::ios::binary) << bytes.substr(0, 1000);
+  const int held = ::open((busy.string() + partSuffix).c_str(), O_RDWR);
+  ASSERT_GE(held, 0);
+  ASSERT_EQ(::flock(held, LOCK_EX | LOCK_NB), 0);
+  RunResult second = Cli({"fetch", name, "--server", server.address(), "-o", busy.string()});
+  EXPECT_EQ(second.exitCode, 1) << second.err;
+  EXPECT_NE(second.err.find("another fetch is downloading to"), std::string::npos) << second.err;
+  EXPECT_EQ(ReadFile(busy.string() + partSuffix), bytes.substr(0, 1000));
+  ::close(held);
+  // A directory as the output is refused before the download (exit 2), writing nothing.
+  RunResult intoDir = Cli({"fetch", name, "--server", server.address(), "-o", dir.path().string()});
+  EXPECT_EQ(intoDir.exitCode, 2) << intoDir.err;
+  EXPECT_FALSE(std::filesystem::exists(dir.path().string() + partSuffix));
   // A volume the server lost (its file removed behind its back) is the server's failure: exit 1,
   // not 2 (bad input), and the message names the job.
   int removed = 0;
@@ -460,43 +484,6 @@ TEST(EndToEnd, FetchResumesAPartialDownloadAndRejectsACorruptOne) {
   EXPECT_NE(lost.err.find(name + ": the server no longer has its volume"), std::string::npos)
       << lost.err;
   EXPECT_FALSE(std::filesystem::exists(dir.path() / ("lost.vdb" + partSuffix)));  // none began
-}
-
-TEST(EndToEnd, FetchTakesUpOnlyItsOwnPartialDownload) {
-  TempDir dir;
-  auto job = WriteJob(dir.path(), "job.json", 3, 3, 2, 64);
-  ServerProcess server(dir.path());
-  RunResult submit = Cli({"submit", job.string(), "--server", server.address(), "--wait"});
-  ASSERT_EQ(submit.exitCode, 0) << submit.err;
-  const std::string name = JobName(submit.out);
-  auto full = dir.path() / "full.vdb";
-  ASSERT_EQ(Cli({"fetch", name, "--server", server.address(), "-o", full.string()}).exitCode, 0);
-  const std::string bytes = ReadFile(full);
-  const std::string part = "." + Sha256Hex(bytes).substr(0, 12) + ".part";
-  // Partial files of other downloads to the same path (an interrupted fetch of another job, the
-  // old naming) are not taken up: the first fetch succeeds.
-  auto out = dir.path() / "out.vdb";
-  std::ofstream(out.string() + ".part", std::ios::binary) << std::string(1000, 'x');
-  std::ofstream(out.string() + ".0123456789ab.part", std::ios::binary) << std::string(1000, 'y');
-  RunResult first = Cli({"fetch", name, "--server", server.address(), "-o", out.string()});
-  ASSERT_EQ(first.exitCode, 0) << first.err;
-  EXPECT_EQ(ReadFile(out), bytes);
-  // A second fetch to a path another is downloading to fails at once (exit 1) and leaves the
-  // other's partial file alone.
-  auto busy = dir.path() / "busy.vdb";
-  std::ofstream(busy.string() + part, std::ios::binary) << bytes.substr(0, 1000);
-  const int held = ::open((busy.string() + part).c_str(), O_RDWR);
-  ASSERT_GE(held, 0);
-  ASSERT_EQ(::flock(held, LOCK_EX | LOCK_NB), 0);
-  RunResult second = Cli({"fetch", name, "--server", server.address(), "-o", busy.string()});
-  EXPECT_EQ(second.exitCode, 1) << second.err;
-  EXPECT_NE(second.err.find("another fetch is downloading to"), std::string::npos) << second.err;
-  EXPECT_EQ(ReadFile(busy.string() + part), bytes.substr(0, 1000));
-  ::close(held);
-  // A directory as the output is refused before the download (exit 2), writing nothing.
-  RunResult intoDir = Cli({"fetch", name, "--server", server.address(), "-o", dir.path().string()});
-  EXPECT_EQ(intoDir.exitCode, 2) << intoDir.err;
-  EXPECT_FALSE(std::filesystem::exists(dir.path().string() + part));
 }
 
 TEST(EndToEnd, KilledMidBakeTheJobCompletesOnceWithTheSameBits) {
