@@ -361,6 +361,7 @@ TEST(Adaptive, AProbeThatHasSeenNoLightYetSamplesOn) {
   EXPECT_LT(black, 64);
   // The job's error estimate averages the known errors and counts the unknown ones apart.
   EXPECT_EQ(last.probesErrorUnknown, unknown);
+  // The volume's errors are floats (rounding 6e-8 each), the estimate averages their doubles.
   EXPECT_NEAR(last.errorEstimate, knownSum / (64 - unknown), 1e-6 * last.errorEstimate);
 }
 

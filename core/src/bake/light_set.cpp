@@ -105,8 +105,7 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer, size_t treeMin
     }
     l.power = Luminance(l.radiance);
     lights_.push_back(l);
-    if (l.kind == Kind::kPoint || l.kind == Kind::kSpot || l.kind == Kind::kDirectional)
-      deltaLights_.push_back(i);
+    if (IsDelta(l.kind)) deltaLights_.push_back(i);
     if (l.kind == Kind::kSun) distantLights_.push_back(i);
   }
 
@@ -216,7 +215,7 @@ void LightSet::BuildTrees(size_t treeMinLights) {
     if (treeOfLight_[i] >= 0) continue;
     const Kind k = lights_[i].kind;
     slotOfLight_[i] = uint32_t(slots_.size());
-    slots_.push_back({i, -1, k == Kind::kPoint || k == Kind::kSpot || k == Kind::kDirectional});
+    slots_.push_back({i, -1, IsDelta(k)});
   }
   std::vector<uint32_t> slotOfTree(trees_.size());
   for (size_t t = 0; t < trees_.size(); ++t) {
@@ -259,9 +258,7 @@ double LightSet::SpotFalloff(const LightData& l, const Vec3d& wFromLight) const 
 
 bool LightSet::HasEmission(bool delta) const {
   for (const LightData& l : lights_) {
-    const bool isDelta =
-        l.kind == Kind::kPoint || l.kind == Kind::kSpot || l.kind == Kind::kDirectional;
-    if (isDelta == delta && l.power > 0) return true;
+    if (IsDelta(l.kind) == delta && l.power > 0) return true;
   }
   return false;
 }

@@ -144,6 +144,10 @@ class LightSet {
     kMesh,
     kEnv
   };
+  // Point, spot and zero-size directional lights: projected exactly at the probe, never hit.
+  static bool IsDelta(Kind k) {
+    return k == Kind::kPoint || k == Kind::kSpot || k == Kind::kDirectional;
+  }
   struct LightData {
     Kind kind;
     Vec3d radiance;  // area lights, sun disk: emitted radiance; point/spot: intensity;

@@ -65,9 +65,11 @@ class Validator {
       errors_.Add("grid", "missing");
     } else {
       Grid(job.grid());
-      if (errors_.ok()) VoxelVolume(ResolveGrid(job.grid()));
-      if (errors_.ok())
-        SpacingPrecision(ResolveGrid(job.grid()), job_internal::HasSpacing(job.grid()));
+      if (errors_.ok()) {
+        const ProbeGrid resolved = ResolveGrid(job.grid());
+        VoxelVolume(resolved);
+        if (errors_.ok()) SpacingPrecision(resolved, job_internal::HasSpacing(job.grid()));
+      }
       // Known up front to bake nothing: no surface for NEAR_SURFACES to be near.
       if (job.grid().placement() == v1::Grid::NEAR_SURFACES && job.scene().meshes().empty()) {
         errors_.Add("grid.placement",
