@@ -3,11 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <set>
 #include <tuple>
 
 #include "absl/strings/escaping.h"
+#include "absl/strings/str_cat.h"
 #include "job/test_util.h"
 #include "probebake/job/job.h"
 #include "probebake/job/job_json.h"
@@ -429,6 +431,106 @@ TEST(MeshImport, GltfNodesMustFormShallowTrees) {
                               "cannot import \"m.gltf\" as gltf: " + c.message))
         << c.message;
   }
+}
+
+TEST(MeshImport, GltfGeometryAssimpWouldMisreadIsRefused) {
+  // Each read "fine" by assimp, and baked wrong: int16 positions taken for floats, a dangling index
+  // dropped, a mesh morphed in any viewer baked unmorphed (black-box import audit).
+  TempDir dir;
+  const std::string bin = GltfBuffer();
+  const std::string base =
+      GltfJson("data:application/octet-stream;base64," + absl::Base64Escape(bin), bin.size());
+  // base with each (from, to) of `edits` applied in turn.
+  auto edited = [&](std::vector<std::pair<std::string, std::string>> edits) {
+    std::string json = base;
+    for (const auto& [from, to] : edits) {
+      const size_t at = json.find(from);
+      EXPECT_NE(at, std::string::npos) << from;
+      if (at != std::string::npos) json.replace(at, from.size(), to);
+    }
+    return json;
+  };
+  const std::string meshes = R"("meshes": [{)";
+  const struct {
+    std::string json;
+    std::string message;  // "" when accepted
+  } cases[] = {
+      {edited({{R"("asset")", R"("extensionsUsed": ["KHR_mesh_quantization"], "asset")"}}),
+       "it uses the glTF extension KHR_mesh_quantization, which the importer does not read"},
+      {edited({{R"("asset")", R"("extensionsRequired": ["EXT_meshopt_compression"], "asset")"}}),
+       "it uses the glTF extension EXT_meshopt_compression"},
+      {edited({{R"("count": 3, "type": "SCALAR")", R"("count": 2, "type": "SCALAR")"}}),
+       "mesh 0 primitive 0 is a triangle list of 2 indices, not a multiple of 3"},
+      {edited({{R"(, "indices": 1, "mode": 4)", ""},
+               {R"("count": 3, "type": "VEC3")", R"("count": 4, "type": "VEC3")"}}),
+       "mesh 0 primitive 0 is a triangle list of 4 vertices, not a multiple of 3"},
+      {edited({{meshes, meshes + R"("weights": [0, 0.5], )"}}),
+       "mesh 0 has morph targets with non-zero default weights, which are not applied"},
+      // Weights of zero leave the mesh as it is.
+      {edited({{meshes, meshes + R"("weights": [0], )"}}), ""},
+      // Only triangle lists are counted: a strip of 4 indices is two triangles.
+      {edited({{R"("count": 3, "type": "SCALAR")", R"("count": 4, "type": "SCALAR")"},
+               {R"("byteOffset": 36, "byteLength": 6)", R"("byteOffset": 36, "byteLength": 8)"},
+               {R"("mode": 4)", R"("mode": 5)"}}),
+       ""},
+  };
+  for (const auto& c : cases) {
+    dir.Write("m.gltf", c.json);
+    const absl::StatusOr<BakeJob> built = BuildMeshJob(dir, "m.gltf");
+    if (c.message.empty()) {
+      EXPECT_TRUE(built.ok()) << built.status();
+      continue;
+    }
+    EXPECT_TRUE(HasFieldError(built.status(), "scene.meshes[0].file", c.message)) << c.message;
+  }
+}
+
+TEST(MeshImport, PlyTriangleStripsAreRefused) {
+  // Assimp kept the first triangle of each strip and dropped the rest, silently.
+  TempDir dir;
+  dir.Write("m.ply",
+            "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+            "property float z\nelement tristrips 1\nproperty list int int vertex_indices\n"
+            "end_header\n0 0 1\n1 0 1\n1 1 1\n0 1 1\n4 0 1 3 2\n");
+  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "m.ply").status(), "scene.meshes[0].file",
+                            "cannot import \"m.ply\" as ply: it stores triangle strips (element "
+                            "'tristrips'), which are not supported"));
+}
+
+// An OBJ file holding one convex polygon of n vertices on the unit circle.
+std::string ObjPolygon(int n) {
+  std::string obj;
+  for (int i = 0; i < n; ++i) {
+    const double a = 2 * 3.141592653589793 * i / n;
+    absl::StrAppend(&obj, "v ", std::cos(a), " ", std::sin(a), " 0\n");
+  }
+  obj += "f";
+  for (int i = 1; i <= n; ++i) absl::StrAppend(&obj, " ", i);
+  obj += '\n';
+  return obj;
+}
+
+TEST(MeshImport, PolygonsTooLargeToTriangulateAreRefusedFirst) {
+  // Triangulation takes O(n^2): a 32000-vertex face (1 MB) took 18 s. Refused before it starts.
+  TempDir dir;
+  dir.Write("big.obj", ObjPolygon(8193));  // 8193^2 > 2^26
+  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "big.obj").status(), "scene.meshes[0].file",
+                            "\"big.obj\"'s polygons are too large to triangulate (face 0 has 8193 "
+                            "vertices"));
+  dir.Write("fine.obj", ObjPolygon(1000));
+  const absl::StatusOr<BakeJob> fine = BuildMeshJob(dir, "fine.obj");
+  ASSERT_TRUE(fine.ok()) << fine.status();
+  EXPECT_EQ(fine->scene.meshes[0].TriangleCount(), 998u);
+}
+
+TEST(MeshImport, ObjWithAByteOrderMarkKeepsItsFirstVertex) {
+  // Windows tools write one; assimp read the first line as garbage ("vertex index out of range").
+  TempDir dir;
+  dir.Write("bom.obj", std::string("\xEF\xBB\xBF") + "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  const absl::StatusOr<BakeJob> built = BuildMeshJob(dir, "bom.obj");
+  ASSERT_TRUE(built.ok()) << built.status();
+  EXPECT_EQ(UsedPositions(built->scene.meshes[0]),
+            (std::set<Point>{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}}));
 }
 
 TEST(MeshImport, TriangleLimitCountsFilesAndInlineMeshes) {

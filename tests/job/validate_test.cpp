@@ -180,6 +180,10 @@ TEST(ValidateJobSpec, MeshSources) {
                             "scene.meshes[0].file", "unknown mesh format"));
   EXPECT_TRUE(HasFieldError(CheckPatched("scene.meshes[0].file", "\"/abs/room.obj\""),
                             "scene.meshes[0].file", "relative"));
+  // A control character in a name is shown escaped: a NUL cut the message short.
+  EXPECT_TRUE(HasFieldError(CheckPatched("scene.meshes[0].file", "\"room\\u0000.obj\\n\""),
+                            "scene.meshes[0].file",
+                            "unknown mesh format of \"room\\x00.obj\\x0a\" (expected"));
   EXPECT_TRUE(HasFieldError(CheckPatched("scene.meshes[0].format", "\"stl\""),
                             "scene.meshes[0].format", "unknown format \"stl\""));
   // An explicit format names the reader whatever the extension says.

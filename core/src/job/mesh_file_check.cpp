@@ -12,6 +12,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
 #include "json_nesting.h"
+#include "text.h"
 
 namespace probebake::job_internal {
 namespace {
@@ -220,6 +221,11 @@ std::string PlyProblem(std::string_view bytes) {
       for (const Element& e : elements) {
         if (e.count > 0 && e.properties.empty())
           return "element '" + e.name + "' has items but no properties";
+        // Assimp keeps one triangle of each strip and drops the rest without a word.
+        if (e.count > 0 && e.name == "tristrips") {
+          return "it stores triangle strips (element 'tristrips'), which are not supported: "
+                 "export triangles or polygons (element 'face')";
+        }
       }
       const std::string_view body = bytes.substr(lineStart);
       return format == Format::kAscii ? CheckAscii(body, elements)
@@ -265,16 +271,14 @@ std::string GlbProblem(std::string_view bytes) {
     }
     at += 8 + size;
   }
-  const std::string_view json = bytes.substr(20, u32(12));  // the JSON chunk, which fits
-  if (std::string problem = GltfNodeProblem(json); !problem.empty()) return problem;
-  return GltfExternalBufferProblem(json);
+  return GltfProblem(bytes.substr(20, u32(12)));  // the JSON chunk, which fits
 }
 
-std::string GltfExternalBufferProblem(std::string_view json) {
-  google::protobuf::Value root;
-  if (JsonNestsDeeperThan(json, 100) ||
-      !google::protobuf::util::JsonStringToMessage(std::string(json), &root).ok())
-    return "";
+namespace {
+
+// A buffer outside the file: a uri that is not a data: URI. Assimp would open it through the file
+// system, which a bake never lets it do (a server must not open a path a request names, SPEC 8).
+std::string ExternalBufferProblem(const google::protobuf::Value& root) {
   const auto& fields = root.struct_value().fields();
   const auto buffers = fields.find("buffers");
   if (buffers == fields.end()) return "";
@@ -292,12 +296,10 @@ std::string GltfExternalBufferProblem(std::string_view json) {
   return "";
 }
 
-std::string GltfNodeProblem(std::string_view json) {
-  constexpr int kMaxNesting = 100;
-  if (JsonNestsDeeperThan(json, kMaxNesting))
-    return "its JSON nests deeper than " + std::to_string(kMaxNesting) + " levels";
-  google::protobuf::Value root;
-  if (!google::protobuf::util::JsonStringToMessage(std::string(json), &root).ok()) return "";
+// A node graph that is not a forest: a child index out of range, a node with two parents (each
+// level doubling the scene: 22 levels took 2.7 GB before assimp was stopped), a cycle, or nesting
+// deeper than 1000.
+std::string NodeProblem(const google::protobuf::Value& root) {
   const auto& fields = root.struct_value().fields();
   const auto nodesField = fields.find("nodes");
   if (nodesField == fields.end()) return "";
@@ -339,13 +341,93 @@ std::string GltfNodeProblem(std::string_view json) {
   return "";
 }
 
+// Geometry assimp would read wrong without a word: the quantized or meshopt-compressed attributes
+// of two extensions it does not implement (int16 positions read as floats), triangle lists whose
+// index (or vertex) count is not a multiple of 3 (the rest dropped), and morph targets with
+// non-zero default weights (not applied).
+std::string PrimitiveProblem(const google::protobuf::Value& root) {
+  const auto& fields = root.struct_value().fields();
+  for (const char* list : {"extensionsUsed", "extensionsRequired"}) {
+    const auto used = fields.find(list);
+    if (used == fields.end()) continue;
+    for (const google::protobuf::Value& name : used->second.list_value().values()) {
+      const std::string& extension = name.string_value();
+      if (extension == "KHR_mesh_quantization" || extension == "EXT_meshopt_compression") {
+        return "it uses the glTF extension " + extension +
+               ", which the importer does not read: export without it";
+      }
+    }
+  }
+  const auto member = [](const google::protobuf::Value& v, const char* name) {
+    const auto& f = v.struct_value().fields();
+    const auto it = f.find(name);
+    return it == f.end() ? nullptr : &it->second;
+  };
+  const google::protobuf::Value* accessors = member(root, "accessors");
+  // The count of accessor `index`, or -1 when the file does not say.
+  const auto accessorCount = [&](const google::protobuf::Value* index) -> double {
+    if (index == nullptr || accessors == nullptr) return -1;
+    const auto& list = accessors->list_value().values();
+    const double i = index->number_value();
+    if (!(i >= 0 && i < list.size()) || i != std::floor(i)) return -1;
+    const google::protobuf::Value* count = member(list[int(i)], "count");
+    return count == nullptr ? -1 : count->number_value();
+  };
+  const google::protobuf::Value* meshes = member(root, "meshes");
+  if (meshes == nullptr) return "";
+  const auto& meshList = meshes->list_value().values();
+  for (int m = 0; m < meshList.size(); ++m) {
+    const std::string where = "mesh " + std::to_string(m);
+    if (const google::protobuf::Value* weights = member(meshList[m], "weights")) {
+      for (const google::protobuf::Value& w : weights->list_value().values()) {
+        if (w.number_value() != 0) {
+          return where +
+                 " has morph targets with non-zero default weights, which are not "
+                 "applied: apply them to the mesh before export";
+        }
+      }
+    }
+    const google::protobuf::Value* primitives = member(meshList[m], "primitives");
+    if (primitives == nullptr) continue;
+    const auto& primitiveList = primitives->list_value().values();
+    for (int p = 0; p < primitiveList.size(); ++p) {
+      const google::protobuf::Value& primitive = primitiveList[p];
+      const google::protobuf::Value* mode = member(primitive, "mode");
+      if (mode != nullptr && mode->number_value() != 4) continue;  // TRIANGLES is 4, the default
+      const google::protobuf::Value* indices = member(primitive, "indices");
+      const google::protobuf::Value* attributes = member(primitive, "attributes");
+      const double count =
+          indices != nullptr
+              ? accessorCount(indices)
+              : accessorCount(attributes ? member(*attributes, "POSITION") : nullptr);
+      if (count > 0 && std::fmod(count, 3) != 0) {
+        return where + " primitive " + std::to_string(p) + " is a triangle list of " +
+               Num(int64_t(count)) + (indices != nullptr ? " indices" : " vertices") +
+               ", not a multiple of 3";
+      }
+    }
+  }
+  return "";
+}
+
+}  // namespace
+
+std::string GltfProblem(std::string_view json) {
+  constexpr int kMaxNesting = 100;
+  if (JsonNestsDeeperThan(json, kMaxNesting))
+    return "its JSON nests deeper than " + std::to_string(kMaxNesting) + " levels";
+  google::protobuf::Value root;
+  if (!google::protobuf::util::JsonStringToMessage(std::string(json), &root).ok()) return "";
+  for (const auto check : {NodeProblem, ExternalBufferProblem, PrimitiveProblem}) {
+    if (std::string problem = check(root); !problem.empty()) return problem;
+  }
+  return "";
+}
+
 std::string MeshFileProblem(std::string_view bytes, const std::string& format) {
   if (format == "ply") return PlyProblem(bytes);
   if (format == "glb") return GlbProblem(bytes);
-  if (format == "gltf") {
-    if (std::string problem = GltfNodeProblem(bytes); !problem.empty()) return problem;
-    return GltfExternalBufferProblem(bytes);
-  }
+  if (format == "gltf") return GltfProblem(bytes);
   return "";
 }
 
