@@ -90,6 +90,18 @@ TEST(VolumeMerge, ShardsMergeIntoTheWholeGridBitForBit) {
   EXPECT_EQ(m.stats.samples, all.stats.samples);
   EXPECT_EQ(merged->meta.seed, whole.settings.seed);
 
+  // A part overlapping the others (its row of probes baked twice) and a part given twice leave
+  // the same volume; its probe count is still the volume's, the samples are the work done.
+  BakePart(whole, {-0.8, -0.8, 1.9}, {4, 3, 1}, dir.File("d.vdb"));
+  absl::StatusOr<ProbeVolumeFile> overlapping =
+      MergeProbeVolumes(ReadParts({dir.File("a.vdb"), dir.File("b.vdb"), dir.File("c.vdb"),
+                                   dir.File("d.vdb"), dir.File("d.vdb")}));
+  ASSERT_TRUE(overlapping.ok()) << overlapping.status();
+  EXPECT_EQ(overlapping->volume.active, all.active);
+  EXPECT_EQ(overlapping->volume.stats.probes, all.stats.probes);
+  EXPECT_EQ(overlapping->volume.stats.invalidProbes, all.stats.invalidProbes);
+  EXPECT_GT(overlapping->volume.stats.samples, all.stats.samples);
+
   // And through a file: what `probebake merge` writes reads back as the same volume.
   PB_ASSERT_OK(WriteProbeVolume(dir.File("merged.vdb"), m, merged->meta));
   const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(dir.File("merged.vdb"));

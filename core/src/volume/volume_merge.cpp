@@ -171,10 +171,8 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
     const BakeStats& s = v.stats;
     out.stats.wallSeconds = std::max(out.stats.wallSeconds, s.wallSeconds);
     out.stats.threads += s.threads;
-    out.stats.probes += s.probes;
     out.stats.samples += s.samples;
     out.stats.rays += s.rays;
-    out.stats.invalidProbes += s.invalidProbes;
     if (autoWindow) {
       long long n = 0, m = 0;
       double t = 0;
@@ -184,6 +182,12 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
     }
   }
   if (autoWindow) out.window = AutoWindowSummary(windowed, autoProbes, maxT);
+  // As a bake counts them, over the merged volume: parts that overlap hold some probes twice.
+  for (int64_t q = 0; q < probeCount; ++q) {
+    if (!out.active[q]) continue;
+    ++out.stats.probes;
+    if (out.validity[q] == 0.0f) ++out.stats.invalidProbes;
+  }
   return merged;
 }
 

@@ -14,10 +14,11 @@
 // The merged grid is the bounding box of the parts: per axis its min is the lowest part's min
 // (that part's exact double), its counts reach the highest part's last probe; probes no part
 // covers are inactive; a bounding box of more than twice the parts' probes (plus 2^20) is
-// refused as not one tiled grid. Stats: probes, samples, rays, invalid probes and threads add up
-// (the work of every machine; a probe baked twice counts twice), wallSeconds is the longest part's
-// (parts run side by side). Parts with the AUTO window must not overlap, as its summary counts
-// windowed probes.
+// refused as not one tiled grid. Stats: probes and invalidProbes count the merged volume's active
+// probes and those of them with validity 0, as a bake counts its own (a probe two parts hold counts
+// once); samples, rays and threads add up (the work of every machine: a probe baked twice counts
+// twice); wallSeconds is the longest part's (parts run side by side). Parts with the AUTO window
+// must not overlap, as its summary counts windowed probes.
 #pragma once
 
 #include <string>
