@@ -134,12 +134,14 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
           if (face.mNumIndices > kPolygonWorkFrom) {
             polygonWork += double(face.mNumIndices) * face.mNumIndices;
             if (polygonWork > kMaxPolygonWork) {
-              return FieldError(
-                  fieldPath, what + "'s polygons are too large to triangulate (face " + Num(f) +
-                                 " has " + Num(face.mNumIndices) +
-                                 " vertices; the sum of the squares of their vertex counts over 64 "
-                                 "may be at most " +
-                                 Num(int64_t(kMaxPolygonWork)) + "): triangulate it before export");
+              return FieldError(fieldPath, what +
+                                               " has polygons too large to triangulate in time: "
+                                               "face " +
+                                               Num(f) + " has " + Num(face.mNumIndices) +
+                                               " vertices (the squares of the vertex counts of "
+                                               "faces over 64 vertices may sum to at most " +
+                                               Num(int64_t(kMaxPolygonWork)) +
+                                               "); triangulate them before export");
             }
           }
         }
