@@ -401,6 +401,32 @@ TEST(Extremes, TinyAndHugeRadianceInOneScene) {
   ExpectProjection(Probe(v, 1), uniform, Vec3d{2e12, 2e12, 2e12}, "1e12 furnace");
 }
 
+TEST(Extremes, LightTooCloseForTheVolumesFloatsFailsTheBakeNamingTheProbe) {
+  // I = 1e30 (the largest a job may give) at d = 1e-5: I / d^2 = 1e40, past float's 3.4e38. It
+  // was written as inf with std_error 0 (black-box maths audit); at d = 1e-3 (1e36) it fits.
+  for (const double d : {1e-3, 1e-5}) {
+    BakeJob job = MakeJob(1, 16, {0, 0, 0});
+    job.grid.counts[0] = 2;
+    job.grid.spacing = {1, 1, 1};
+    job.scene.lights.push_back(PointLight{{1, 0, d}, {1e30, 1e30, 1e30}});
+    BakeOptions options;
+    options.threads = 1;
+    const absl::StatusOr<ProbeVolume> v = Bake(job, options);
+    if (d > 1e-4) {
+      ASSERT_TRUE(v.ok()) << v.status();
+      EXPECT_TRUE(std::isfinite(v->radiance[0][3])) << v->radiance[0][3];
+      EXPECT_GT(v->radiance[0][3], 1e35);
+      continue;
+    }
+    ASSERT_FALSE(v.ok());
+    EXPECT_EQ(v.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_NE(v.status().message().find("grid: the probe (1, 0, 0) at (1, 0, 0) receives more "
+                                        "light than the volume's 32-bit floats hold"),
+              std::string::npos)
+        << v.status();
+  }
+}
+
 TEST(Extremes, ProbeNextToAWallAndFarFromTheOrigin) {
   // A probe 1e-5 above a black floor under a uniform sky sees exactly the upper hemisphere: no ray
   // leaks under the floor. Then the same with the whole scene moved by 1e5 units.

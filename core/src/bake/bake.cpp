@@ -9,10 +9,12 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <limits>
 #include <mutex>
 #include <numeric>
 #include <thread>
 
+#include "absl/strings/str_cat.h"
 #include "probe_finish.h"
 #include "probe_integrator.h"
 #include "probe_site.h"
@@ -44,6 +46,36 @@ double Seconds(Clock::time_point since) {
 }
 
 // Sample counts of the batches of one probe: `batches` nearly equal parts of `samples`.
+// Whether every radiance and irradiance value of `probe` is finite: a sum finite in double can
+// overflow the volume's floats (a point light 1e-5 from a probe gives I / d^2 = 1e40 from I =
+// 1e30).
+bool FitsInFloats(const ProbeVolume& volume, int64_t probe) {
+  for (const auto* planes : {&volume.radiance, &volume.irradiance}) {
+    for (const std::vector<float>& plane : *planes) {
+      for (int ch = 0; ch < 3; ++ch)
+        if (!std::isfinite(plane[3 * probe + ch])) return false;
+    }
+  }
+  return true;
+}
+
+// The lowest probe index noted, from any thread; -1 when none was.
+class FirstProbe {
+ public:
+  void Note(int64_t probe) {
+    int64_t seen = first_.load(std::memory_order_relaxed);
+    while (probe < seen && !first_.compare_exchange_weak(seen, probe)) {
+    }
+  }
+  int64_t First() const {
+    const int64_t p = first_.load();
+    return p == std::numeric_limits<int64_t>::max() ? -1 : p;
+  }
+
+ private:
+  std::atomic<int64_t> first_{std::numeric_limits<int64_t>::max()};
+};
+
 int64_t BatchSize(int64_t samples, int batches, int b) {
   return samples / batches + (b < samples % batches ? 1 : 0);
 }
@@ -289,6 +321,7 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   counters.rays.fetch_add(prepassRays.load(), std::memory_order_relaxed);
   Reporter reporter(options, counters, activeCount, resumed, start, volume, done);
   std::atomic<bool> cancelled{false};
+  FirstProbe overflow;  // a probe whose values overflowed the volume's floats
   const std::atomic<bool>* cancel = options.cancel;
   auto isCancelled = [&] {
     return cancelled.load(std::memory_order_relaxed) ||
@@ -356,11 +389,28 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
             }
           }
           finisher.Finish(estimate, next, probe, &volume);
+          if (!FitsInFloats(volume, probe)) {
+            overflow.Note(probe);
+            cancelled.store(true, std::memory_order_relaxed);
+            return;
+          }
           done[probe].store(1, std::memory_order_release);
           reporter.ProbeDone(volume.stdError[probe]);
         }
       });
 
+  if (const int64_t probe = overflow.First(); probe >= 0) {
+    reporter.Stop(/*checkpoint=*/false);
+    int i, j, k;
+    grid.Coords(probe, &i, &j, &k);
+    const Vec3d at = grid.Position(i, j, k);
+    const std::string message = absl::StrCat(
+        "grid: the probe (", i, ", ", j, ", ", k, ") at (", at.x, ", ", at.y, ", ", at.z,
+        ") receives more light than the volume's 32-bit floats hold (over 3.4e38 in a "
+        "coefficient): is a point or spot light almost on it? (their light grows as 1 / d^2)");
+    log->error("{}", message);
+    return absl::InvalidArgumentError(message);
+  }
   if (isCancelled()) {
     reporter.Stop(/*checkpoint=*/true);
     log->info("cancelled after {:.3f} s", Seconds(start));
