@@ -213,9 +213,31 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   const Vec3d offset = LocalOrigin(job.scene);
   const ProbeSites sites(job.scene, offset);
   PB_ASSIGN_OR_RETURN(std::unique_ptr<TracerScene> tracer, TracerScene::Build(job.scene, offset));
-  const LightSet lights(job.scene, *tracer);
+  LightSet lights(job.scene, *tracer);
   const ProbeIntegrator integrator(job.scene, *tracer, lights, settings);
   const ProbeFinisher finisher(settings);
+  // Where geometry can hide lights, how much of each light reaches each region
+  // (light_visibility.h). The pure direction-sampling estimator never chooses a light.
+  int64_t visibilityRays = 0;
+  if (options.lightVisibility && settings.estimator != Estimator::kDirectionSampling &&
+      !job.scene.meshes.empty()) {
+    const auto visibilityStart = Clock::now();
+    LightVisibility visibility = LightVisibility::Build(
+        tracer->boundsMin(), tracer->boundsMax(), lights.ImportanceSize(),
+        [&](size_t entry, const Vec3d& x, const double u[3]) {
+          LightSample s;
+          if (!lights.SampleEntry(entry, x, u[0], {u[1], u[2]}, &s)) return -1;
+          TraceCounters unused;
+          return MaxComponent(integrator.ShadowTransmittance(Vec3f(x), s, &unused)) > 0 ? 1 : 0;
+        });
+    visibilityRays = visibility.rays();
+    if (visibility.dims(0) > 0) {
+      log->info("light visibility: {} x {} x {} cells, {} entries, {} rays, {:.3f} s",
+                visibility.dims(0), visibility.dims(1), visibility.dims(2), lights.ImportanceSize(),
+                visibilityRays, Seconds(visibilityStart));
+    }
+    lights.SetVisibility(std::move(visibility));
+  }
   log->info(
       "scene ready in {:.3f} s: {} meshes, {} lights ({} chosen through light trees), {} probes, "
       "order {}, {} samples/probe",
@@ -318,7 +340,7 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
         n);
 
   SharedCounters counters;
-  counters.rays.fetch_add(prepassRays.load(), std::memory_order_relaxed);
+  counters.rays.fetch_add(prepassRays.load() + visibilityRays, std::memory_order_relaxed);
   Reporter reporter(options, counters, activeCount, resumed, start, volume, done);
   std::atomic<bool> cancelled{false};
   FirstProbe overflow;  // a probe whose values overflowed the volume's floats

@@ -334,7 +334,30 @@ double LightSet::Importance(const Vec3d& p, const Vec3d* n, bool includeDelta,
     }
     total += importance[s];
   }
+  if (const float* factor = visibility_.At(p)) {
+    total = 0;
+    for (size_t s = 0; s < slots_.size(); ++s) {
+      importance[s] *= factor[s];
+      total += importance[s];
+    }
+  }
   return total;
+}
+
+bool LightSet::SampleEntry(size_t entry, const Vec3d& p, double uTree, const Vec2d& u,
+                           LightSample* sample) const {
+  const Slot& slot = slots_[entry];
+  uint32_t light = slot.light;
+  if (slot.tree >= 0) {
+    const auto leaf = [&](uint32_t i) { return LightImportance(lights_[i], p, nullptr); };
+    double treePmf;
+    if (!trees_[slot.tree]->Sample(p, nullptr, uTree, leaf, &light, &treePmf)) return false;
+  } else if (!(LightImportance(lights_[light], p, nullptr) > 0)) {
+    return false;
+  }
+  if (!SampleOne(lights_[light], light, p, nullptr, u, sample)) return false;
+  sample->light = light;
+  return true;
 }
 
 double LightSet::SelectionPmf(uint32_t light, const Vec3d& p, const Vec3d* n,

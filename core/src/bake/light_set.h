@@ -17,6 +17,10 @@
 // (light_tree.h) picks one of them in O(log n). Scenes with fewer lights keep the exact linear
 // choice.
 //
+// With a visibility table (SetVisibility, light_visibility.h) each entry's importance is also
+// scaled by a factor in (0, 1] for the region of p: the fraction of shadow rays from there that
+// reach that light, floored. Sample, the pdfs and MIS all read the scaled importance.
+//
 // Units: pdfs per steradian and include the selection probability; for delta lights `pdf` is the
 // selection probability alone and `radiance` is the delta's weight (I / d^2 for point lights, E for
 // directional ones). Positions are the tracer's local coordinates (tracer_scene.h).
@@ -26,10 +30,12 @@
 #include <limits>
 #include <memory>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "environment_light.h"
 #include "light_tree.h"
+#include "light_visibility.h"
 #include "probebake/math/vec3.h"
 #include "probebake/scene/scene.h"
 #include "tracer_scene.h"
@@ -95,6 +101,15 @@ class LightSet {
   // The probability that Choose picks `light` at (p, n), given that point's importance array.
   double SelectionPmf(uint32_t light, const Vec3d& p, const Vec3d* n,
                       std::span<const double> importance, double total) const;
+
+  // Samples a point of entry `entry` of the linear choice from p (no surface), as Sample would
+  // once that entry is chosen: uTree walks its light tree, if it is one, and u samples the light.
+  // False when it cannot light p. For building the visibility table.
+  bool SampleEntry(size_t entry, const Vec3d& p, double uTree, const Vec2d& u,
+                   LightSample* sample) const;
+  // Scales importance by `visibility`'s factors from now on (built for ImportanceSize() entries
+  // over this scene). Not thread-safe: call before sampling starts.
+  void SetVisibility(LightVisibility visibility) { visibility_ = std::move(visibility); }
 
   // Chooses a light as Choose does and samples it with u.
   // Returns false when the chosen light cannot light p (the sample then contributes nothing).
@@ -203,6 +218,7 @@ class LightSet {
   std::vector<uint32_t> slotOfLight_;  // per light: its slot, or its tree's slot
   std::vector<int> treeOfLight_;       // per light: index into trees_, or -1
   std::vector<std::unique_ptr<LightTree>> trees_;
+  LightVisibility visibility_;  // empty unless SetVisibility was called
 };
 
 template <typename Visit>

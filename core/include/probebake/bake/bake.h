@@ -41,6 +41,10 @@ struct BakeOptions {
   const std::atomic<bool>* cancel = nullptr;
   // Also report the standard error of every radiance coefficient (ProbeVolume::radianceStdError).
   bool coefficientErrors = false;
+  // Weigh light selection by how much of each light reaches each region of the scene
+  // (core/src/bake/light_visibility.h). Changes the bits of the result, not its expectation: off
+  // only in tests and benchmarks that compare the two.
+  bool lightVisibility = true;
   // Optional resumption: a partial volume from an earlier run of the same job, whose finished
   // probes ((*resumeDone)[probe] != 0) are kept as they are and not re-baked.
   const ProbeVolume* resumeFrom = nullptr;

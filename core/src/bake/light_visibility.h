@@ -1,0 +1,87 @@
+// How much of each light reaches each region of a scene: the visibility factor of light selection.
+//
+// Light selection (light_set.h) picks a light in proportion to an importance that ignores
+// occlusion, so in a room lit through a window the sun and the sky, bright but hidden from most of
+// the room, drew 80% of next-event samples at the demo's probes and 92% of those met a wall, while
+// the ceiling light, seen from everywhere, drew 11%. This is a grid of cells over the scene's
+// geometry; each cell holds, for every entry of the linear choice, the fraction of shadow rays
+// that arrive, traced from random points of the cell toward random points of the entry's light.
+// LightSet scales an entry's importance at p by Factor = kFloor + (1 - kFloor) * fraction of p's
+// cell. Any positive factor keeps the estimator unbiased (a light is still chosen wherever it
+// could contribute, and MIS uses the same importance); the floor bounds the cost where a cell's
+// fraction misleads (a cell straddling a wall, a sun patch smaller than a cell). Measured by the
+// bench (4096 samples per probe, default settings): the demo room's mean irradiance error fell
+// from 3.53% to 2.83% at the same samples (variance / 1.6), the open courtyard's stayed (1.74%,
+// 1.71%).
+//
+// Deterministic: each cell's rays come from its own stream, hashed from the cell's index and a
+// fixed key, so the factors depend on the scene alone (not on the grid, seed, thread count or
+// sharding).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "probebake/math/vec3.h"
+
+namespace probebake {
+
+class LightVisibility {
+ public:
+  // The least factor: an entry no ray of a cell reached keeps 1/8 of its importance there.
+  static constexpr double kFloor = 0.125;
+  // Shadow rays per cell and entry.
+  static constexpr int kRaysPerCell = 16;
+  // At most this many rays in all (the cell count shrinks with the number of entries): 16 x 12 x 6
+  // cells for the demo room's 3 entries, 0.015 s at 1 thread. A table 8 times as fine, 32 x 24 x
+  // 12, lowered the demo's error at 4096 samples per probe only from 2.83% to 2.79%, and cost
+  // 0.1 s, more than the whole bake of its 144 probes at 64 samples.
+  static constexpr int64_t kRayBudget = int64_t{1} << 16;
+
+  // One shadow ray from x toward light-choice entry `entry`, its point chosen by u (three numbers
+  // in [0, 1)): 1 when it arrives, 0 when it is blocked, -1 when the entry cannot light x (not
+  // counted).
+  using Trace = std::function<int(size_t entry, const Vec3d& x, const double u[3])>;
+
+  // Factors for `entries` choice entries over the box [lo, hi] (local coordinates; the bounds of
+  // the scene's geometry), from `trace`, called from several threads at once. An empty box or
+  // fewer than two entries (nothing to weigh against each other) give a table that At() never
+  // matches.
+  static LightVisibility Build(const Vec3d& lo, const Vec3d& hi, size_t entries,
+                               const Trace& trace);
+
+  // The factors of p's cell, one per entry (in (0, 1]); nullptr outside the box, where importance
+  // is left as it is.
+  const float* At(const Vec3d& p) const {
+    if (factors_.empty()) return nullptr;
+    int64_t cell = 0;
+    for (int a = 2; a >= 0; --a) {
+      const double x = (p[a] - lo_[a]) * inverseSize_[a];
+      if (!(x >= 0 && x < dims_[a])) {
+        // On the far face: the last cell (a flat box's single layer holds exactly its plane).
+        if (x == dims_[a]) {
+          cell = cell * dims_[a] + (dims_[a] - 1);
+          continue;
+        }
+        return nullptr;
+      }
+      cell = cell * dims_[a] + int64_t(x);
+    }
+    return factors_.data() + cell * int64_t(entries_);
+  }
+
+  // The rays Build traced, for the bake's count.
+  int64_t rays() const { return rays_; }
+  // Cells per axis (0 when the table is empty).
+  int dims(int axis) const { return dims_[axis]; }
+
+ private:
+  Vec3d lo_, inverseSize_;  // cells per unit length along each axis
+  int dims_[3] = {0, 0, 0};
+  size_t entries_ = 0;
+  std::vector<float> factors_;  // cell-major: cell * entries + entry
+  int64_t rays_ = 0;
+};
+
+}  // namespace probebake
