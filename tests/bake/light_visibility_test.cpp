@@ -33,14 +33,7 @@ Scene HalfRoofedGround() {
 LightVisibility BuildFor(const Scene& scene, const TracerScene& tracer, const LightSet& lights) {
   static const BakeSettings settings;
   const ProbeIntegrator integrator(scene, tracer, lights, settings);
-  return LightVisibility::Build(
-      tracer.boundsMin(), tracer.boundsMax(), lights.ImportanceSize(),
-      [&](size_t entry, const Vec3d& x, const double u[3]) {
-        LightSample s;
-        if (!lights.SampleEntry(entry, x, u[0], {u[1], u[2]}, &s)) return -1;
-        TraceCounters unused;
-        return MaxComponent(integrator.ShadowTransmittance(Vec3f(x), s, &unused)) > 0 ? 1 : 0;
-      });
+  return LightVisibility::Build(tracer, lights, integrator);
 }
 
 TEST(LightVisibility, FactorsFollowOcclusionAndStayInTheirBox) {

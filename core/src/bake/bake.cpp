@@ -222,14 +222,7 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   if (options.lightVisibility && settings.estimator != Estimator::kDirectionSampling &&
       !job.scene.meshes.empty()) {
     const auto visibilityStart = Clock::now();
-    LightVisibility visibility = LightVisibility::Build(
-        tracer->boundsMin(), tracer->boundsMax(), lights.ImportanceSize(),
-        [&](size_t entry, const Vec3d& x, const double u[3]) {
-          LightSample s;
-          if (!lights.SampleEntry(entry, x, u[0], {u[1], u[2]}, &s)) return -1;
-          TraceCounters unused;
-          return MaxComponent(integrator.ShadowTransmittance(Vec3f(x), s, &unused)) > 0 ? 1 : 0;
-        });
+    LightVisibility visibility = LightVisibility::Build(*tracer, lights, integrator);
     visibilityRays = visibility.rays();
     if (visibility.dims(0) > 0) {
       log->info("light visibility: {} x {} x {} cells, {} entries, {} rays, {:.3f} s",

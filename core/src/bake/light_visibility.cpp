@@ -7,7 +7,10 @@
 #include <atomic>
 #include <cmath>
 
+#include "light_set.h"
+#include "probe_integrator.h"
 #include "probebake/sampling/sampler.h"
+#include "tracer_scene.h"
 
 namespace probebake {
 namespace {
@@ -91,6 +94,18 @@ LightVisibility LightVisibility::Build(const Vec3d& loIn, const Vec3d& hiIn, siz
                     });
   v.rays_ = rays.load();
   return v;
+}
+
+LightVisibility LightVisibility::Build(const TracerScene& tracer, const LightSet& lights,
+                                       const ProbeIntegrator& integrator) {
+  return Build(tracer.boundsMin(), tracer.boundsMax(), lights.ImportanceSize(),
+               [&](size_t entry, const Vec3d& x, const double u[3]) {
+                 LightSample s;
+                 if (!lights.SampleEntry(entry, x, u[0], {u[1], u[2]}, &s)) return -1;
+                 TraceCounters unused;  // Build counts the rays
+                 const Vec3d arrived = integrator.ShadowTransmittance(Vec3f(x), s, &unused);
+                 return MaxComponent(arrived) > 0 ? 1 : 0;
+               });
 }
 
 }  // namespace probebake

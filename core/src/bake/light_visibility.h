@@ -27,6 +27,10 @@
 
 namespace probebake {
 
+class LightSet;
+class ProbeIntegrator;
+class TracerScene;
+
 class LightVisibility {
  public:
   // The least factor: an entry no ray of a cell reached keeps 1/8 of its importance there.
@@ -50,6 +54,12 @@ class LightVisibility {
   // matches.
   static LightVisibility Build(const Vec3d& lo, const Vec3d& hi, size_t entries,
                                const Trace& trace);
+
+  // The table of a bake: over the tracer's geometry bounds, for `lights`' entries (sampled as
+  // LightSet::SampleEntry does), shadow rays traced by `integrator` (its medium attenuates, and
+  // counts as arriving unless it blocks all).
+  static LightVisibility Build(const TracerScene& tracer, const LightSet& lights,
+                               const ProbeIntegrator& integrator);
 
   // The factors of p's cell, one per entry (in (0, 1]); nullptr outside the box, where importance
   // is left as it is.
