@@ -253,6 +253,11 @@ TEST(MeshImport, BadFilesAreRejectedWithThePath) {
   dir.Write("lines.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nl 1 2\nl 2 3\n");
   EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "lines.obj").status(), "scene.meshes[0].file",
                             "\"lines.obj\""));
+  // Control characters in a missing file's name are escaped in both its spellings.
+  const absl::Status bell = BuildMeshJob(dir, "no\\u0007pe.obj").status();
+  EXPECT_TRUE(HasFieldError(bell, "scene.meshes[0].file", "cannot read \"no\\x07pe.obj\" ("));
+  EXPECT_NE(bell.message().find("no\\x07pe.obj)"), std::string::npos) << bell;
+  EXPECT_EQ(bell.message().find('\a'), std::string::npos) << bell;
   dir.Write("external.gltf", GltfJson("external.bin", GltfBuffer().size()));
   EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "external.gltf").status(), "scene.meshes[0].file",
                             "cannot import \"external.gltf\""));
@@ -465,9 +470,17 @@ TEST(MeshImport, GltfGeometryAssimpWouldMisreadIsRefused) {
                {R"("count": 3, "type": "VEC3")", R"("count": 4, "type": "VEC3")"}}),
        "mesh 0 primitive 0 is a triangle list of 4 vertices, not a multiple of 3"},
       {edited({{meshes, meshes + R"("weights": [0, 0.5], )"}}),
-       "mesh 0 has morph targets with non-zero default weights, which are not applied"},
-      // Weights of zero leave the mesh as it is.
+       "node 1 morphs mesh 0 (non-zero morph target weights), which is not applied"},
+      // Weights of zero leave the mesh as it is; a node's weights override its mesh's.
       {edited({{meshes, meshes + R"("weights": [0], )"}}), ""},
+      {edited({{meshes, meshes + R"("weights": [1], )"},
+               {R"({"mesh": 0, "scale": [2, 2, 2]})",
+                R"({"mesh": 0, "scale": [2, 2, 2], "weights": [0]})"},
+               {R"({"mesh": 0}])", R"({"mesh": 0, "weights": [0]}])"}}),
+       ""},
+      {edited({{R"({"mesh": 0}])", R"({"mesh": 0, "weights": [0.25]}])"}}), "node 2 morphs mesh 0"},
+      {edited({{R"("asset")", R"("extensionsUsed": ["KHR_meshopt_compression"], "asset")"}}),
+       "it uses the glTF extension KHR_meshopt_compression"},
       // Only triangle lists are counted: a strip of 4 indices is two triangles.
       {edited({{R"("count": 3, "type": "SCALAR")", R"("count": 4, "type": "SCALAR")"},
                {R"("byteOffset": 36, "byteLength": 6)", R"("byteOffset": 36, "byteLength": 8)"},
@@ -514,9 +527,12 @@ TEST(MeshImport, PolygonsTooLargeToTriangulateAreRefusedFirst) {
   // Triangulation takes O(n^2): a 32000-vertex face (1 MB) took 18 s. Refused before it starts.
   TempDir dir;
   dir.Write("big.obj", ObjPolygon(8193));  // 8193^2 > 2^26
-  EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "big.obj").status(), "scene.meshes[0].file",
-                            "\"big.obj\" has polygons too large to triangulate in time: face 0 has "
-                            "8193 vertices"));
+  EXPECT_TRUE(
+      HasFieldError(BuildMeshJob(dir, "big.obj").status(), "scene.meshes[0].file",
+                    "\"big.obj\" has polygons too large to triangulate in time: the squares "
+                    "of the vertex counts of its faces of over 64 vertices sum to "
+                    "67125249, above 67108864 (the largest, face 0 of mesh 0, has 8193 "
+                    "vertices)"));
   dir.Write("fine.obj", ObjPolygon(1000));
   const absl::StatusOr<BakeJob> fine = BuildMeshJob(dir, "fine.obj");
   ASSERT_TRUE(fine.ok()) << fine.status();

@@ -15,6 +15,7 @@ namespace probebake {
 namespace {
 
 namespace fs = std::filesystem;
+using job_internal::Escaped;
 using job_internal::Num;
 using job_internal::Quoted;
 
@@ -53,7 +54,7 @@ absl::StatusOr<std::string> LocalAssetSource::ReadFile(const std::string& relati
   const fs::path path =
       jobFileDir_.empty() ? fs::path(relativePath) : fs::path(jobFileDir_) / fs::path(relativePath);
   return ReadWholeFile(path, maxBytes_, fieldPath,
-                       "cannot read " + Quoted(relativePath) + " (" + path.string() + ")");
+                       "cannot read " + Quoted(relativePath) + " (" + Escaped(path.string()) + ")");
 }
 
 absl::StatusOr<std::string> LocalAssetSource::ReadBlob(const v1::Digest& digest,

@@ -342,9 +342,9 @@ std::string NodeProblem(const google::protobuf::Value& root) {
 }
 
 // Geometry assimp would read wrong without a word: the quantized or meshopt-compressed attributes
-// of two extensions it does not implement (int16 positions read as floats), triangle lists whose
-// index (or vertex) count is not a multiple of 3 (the rest dropped), and morph targets with
-// non-zero default weights (not applied).
+// of extensions it does not implement (int16 positions read as floats), triangle lists whose
+// index (or vertex) count is not a multiple of 3 (the rest dropped), and a node whose morph
+// target weights (its own, else its mesh's) are not all zero (not applied).
 std::string PrimitiveProblem(const google::protobuf::Value& root) {
   const auto& fields = root.struct_value().fields();
   for (const char* list : {"extensionsUsed", "extensionsRequired"}) {
@@ -352,7 +352,8 @@ std::string PrimitiveProblem(const google::protobuf::Value& root) {
     if (used == fields.end()) continue;
     for (const google::protobuf::Value& name : used->second.list_value().values()) {
       const std::string& extension = name.string_value();
-      if (extension == "KHR_mesh_quantization" || extension == "EXT_meshopt_compression") {
+      if (extension == "KHR_mesh_quantization" || extension == "EXT_meshopt_compression" ||
+          extension == "KHR_meshopt_compression") {
         return "it uses the glTF extension " + extension +
                ", which the importer does not read: export without it";
       }
@@ -376,17 +377,30 @@ std::string PrimitiveProblem(const google::protobuf::Value& root) {
   const google::protobuf::Value* meshes = member(root, "meshes");
   if (meshes == nullptr) return "";
   const auto& meshList = meshes->list_value().values();
-  for (int m = 0; m < meshList.size(); ++m) {
-    const std::string where = "mesh " + std::to_string(m);
-    if (const google::protobuf::Value* weights = member(meshList[m], "weights")) {
-      for (const google::protobuf::Value& w : weights->list_value().values()) {
-        if (w.number_value() != 0) {
-          return where +
-                 " has morph targets with non-zero default weights, which are not "
-                 "applied: apply them to the mesh before export";
-        }
+  const auto anyNonZero = [](const google::protobuf::Value* weights) {
+    if (weights == nullptr) return false;
+    for (const google::protobuf::Value& w : weights->list_value().values())
+      if (w.number_value() != 0) return true;
+    return false;
+  };
+  // A node's weights, when it has them, override its mesh's (glTF 2.0, 3.7.2.2).
+  if (const google::protobuf::Value* nodes = member(root, "nodes")) {
+    const auto& nodeList = nodes->list_value().values();
+    for (int n = 0; n < nodeList.size(); ++n) {
+      const google::protobuf::Value* mesh = member(nodeList[n], "mesh");
+      if (mesh == nullptr) continue;
+      const double m = mesh->number_value();
+      if (!(m >= 0 && m < meshList.size()) || m != std::floor(m)) continue;  // assimp's to refuse
+      const google::protobuf::Value* nodeWeights = member(nodeList[n], "weights");
+      if (anyNonZero(nodeWeights != nullptr ? nodeWeights : member(meshList[int(m)], "weights"))) {
+        return "node " + std::to_string(n) + " morphs mesh " + Num(int64_t(m)) +
+               " (non-zero morph target weights), which is not applied: apply the morph to the "
+               "mesh before export";
       }
     }
+  }
+  for (int m = 0; m < meshList.size(); ++m) {
+    const std::string where = "mesh " + std::to_string(m);
     const google::protobuf::Value* primitives = member(meshList[m], "primitives");
     if (primitives == nullptr) continue;
     const auto& primitiveList = primitives->list_value().values();

@@ -34,10 +34,10 @@ std::string GlbProblem(std::string_view bytes);
 //   - a buffer outside itself, a uri that is not a data: URI: assimp would open it through the
 //     file system, which a bake never lets it do (a server must not open a path a request names,
 //     SPEC 8); the reason says so and how to embed it;
-//   - geometry assimp reads wrong without a word: the extensions KHR_mesh_quantization and
-//     EXT_meshopt_compression (int16 positions read as floats), a triangle list whose index or
-//     vertex count is not a multiple of 3 (the rest dropped), morph targets with non-zero default
-//     weights (not applied).
+//   - geometry assimp reads wrong without a word: the extensions KHR_mesh_quantization,
+//     EXT_meshopt_compression and KHR_meshopt_compression (int16 positions read as floats), a
+//     triangle list whose index or vertex count is not a multiple of 3 (the rest dropped), a node
+//     whose morph target weights (its own, else its mesh's) are not all zero (not applied).
 // JSON this check cannot parse is left to assimp.
 std::string GltfProblem(std::string_view json);
 

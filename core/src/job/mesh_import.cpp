@@ -115,6 +115,9 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
   // that index no vertex or past the mesh's vertices, which fuzzed PLY files produce.
   const aiScene* scene = nullptr;
   double polygonWork = 0;  // the sum of n^2 over polygons of n > kPolygonWorkFrom vertices
+  struct {
+    unsigned mesh = 0, face = 0, vertices = 0;
+  } largest;
   try {
     scene = importer.ReadFileFromMemory(bytes.data(), bytes.size(), aiProcess_ValidateDataStructure,
                                         format.c_str());
@@ -133,18 +136,18 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
           }
           if (face.mNumIndices > kPolygonWorkFrom) {
             polygonWork += double(face.mNumIndices) * face.mNumIndices;
-            if (polygonWork > kMaxPolygonWork) {
-              return FieldError(fieldPath, what +
-                                               " has polygons too large to triangulate in time: "
-                                               "face " +
-                                               Num(f) + " has " + Num(face.mNumIndices) +
-                                               " vertices (the squares of the vertex counts of "
-                                               "faces over 64 vertices may sum to at most " +
-                                               Num(int64_t(kMaxPolygonWork)) +
-                                               "); triangulate them before export");
-            }
+            if (face.mNumIndices > largest.vertices) largest = {m, f, face.mNumIndices};
           }
         }
+      }
+      if (polygonWork > kMaxPolygonWork) {
+        return FieldError(
+            fieldPath,
+            what + " has polygons too large to triangulate in time: the squares of the " +
+                "vertex counts of its faces of over 64 vertices sum to " +
+                Num(int64_t(polygonWork)) + ", above " + Num(int64_t(kMaxPolygonWork)) +
+                " (the largest, face " + Num(largest.face) + " of mesh " + Num(largest.mesh) +
+                ", has " + Num(largest.vertices) + " vertices); triangulate them before export");
       }
       scene = importer.ApplyPostProcessing(aiProcess_Triangulate | aiProcess_SortByPType);
     }

@@ -37,21 +37,28 @@ inline std::string Member(std::string_view path, std::string_view name) {
   return s;
 }
 
-// "s", with control characters as \xNN: a NUL or a newline in a name must not cut or break the
-// message it is quoted in. Other bytes, UTF-8 included, are kept.
-inline std::string Quoted(std::string_view s) {
+// s with control characters as \xNN: a NUL or a newline in a name or path must not cut or break
+// the message it is shown in. Other bytes, UTF-8 included, are kept.
+inline std::string Escaped(std::string_view s) {
   static constexpr char kHex[] = "0123456789abcdef";
-  std::string q = "\"";
+  std::string out;
   for (const char ch : s) {
     const auto c = static_cast<unsigned char>(ch);
     if (c < 0x20 || c == 0x7f) {
-      q += "\\x";
-      q += kHex[c >> 4];
-      q += kHex[c & 15];
+      out += "\\x";
+      out += kHex[c >> 4];
+      out += kHex[c & 15];
     } else {
-      q += ch;
+      out += ch;
     }
   }
+  return out;
+}
+
+// "s", escaped as above.
+inline std::string Quoted(std::string_view s) {
+  std::string q = "\"";
+  q += Escaped(s);
   q += '"';
   return q;
 }
