@@ -45,7 +45,6 @@ double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
 }
 
-// Sample counts of the batches of one probe: `batches` nearly equal parts of `samples`.
 // Whether every radiance and irradiance value of `probe` is finite: a sum finite in double can
 // overflow the volume's floats (a point light 1e-5 from a probe gives I / d^2 = 1e40 from I =
 // 1e30).
@@ -76,6 +75,7 @@ class FirstProbe {
   std::atomic<int64_t> first_{std::numeric_limits<int64_t>::max()};
 };
 
+// Sample counts of the batches of one probe: `batches` nearly equal parts of `samples`.
 int64_t BatchSize(int64_t samples, int batches, int b) {
   return samples / batches + (b < samples % batches ? 1 : 0);
 }
