@@ -35,7 +35,6 @@ LightVisibility LightVisibility::Build(const Vec3d& loIn, const Vec3d& hiIn, siz
 
   // Cubic cells, as many as the ray budget allows; flat axes (a single floor) get one layer a
   // cell thick, centred on them.
-  Vec3d lo = loIn, hi = hiIn;
   int perAxis = kMaxCellsPerAxis;
   for (;; perAxis = std::max(1, perAxis / 2)) {
     const double size = longest / perAxis;
@@ -45,9 +44,15 @@ LightVisibility LightVisibility::Build(const Vec3d& loIn, const Vec3d& hiIn, siz
     if (cells * int64_t(entries) * kRaysPerCell <= kRayBudget || perAxis == 1) break;
   }
   const double size = longest / perAxis;
+  // The box reaches at least 2^-20 of its size past the geometry's bounds on every side: bounce
+  // vertices lie on the walls and floors that make its faces, and points rounded a few ulps
+  // outside fell out of a 1e-3-wide room's table altogether (there importance went unweighed).
+  const double margin = longest * 0x1p-20;
+  Vec3d lo, hi;
   for (int a = 0; a < 3; ++a) {
-    v.dims_[a] = std::max(1, int(std::ceil((hiIn[a] - loIn[a]) / size)));
-    const double pad = (v.dims_[a] * size - (hiIn[a] - loIn[a])) / 2;
+    const double extent = hiIn[a] - loIn[a];
+    v.dims_[a] = std::max(1, int(std::ceil(extent / size)));
+    const double pad = std::max(margin, (v.dims_[a] * size - extent) / 2);
     lo[a] = loIn[a] - pad;
     hi[a] = hiIn[a] + pad;
     v.inverseSize_[a] = v.dims_[a] / (hi[a] - lo[a]);
