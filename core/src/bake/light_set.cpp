@@ -323,6 +323,7 @@ double LightSet::Importance(const Vec3d& p, const Vec3d* n, bool includeDelta,
   PB_DCHECK_EQ(importance.size(), slots_.size());
   double total = 0;
   const auto leaf = [&](uint32_t light) { return LightImportance(lights_[light], p, n); };
+  const float* factor = visibility_.At(p);  // nullptr: no table, or p outside it
   for (size_t s = 0; s < slots_.size(); ++s) {
     const Slot& slot = slots_[s];
     if (slot.delta && !includeDelta) {
@@ -332,14 +333,8 @@ double LightSet::Importance(const Vec3d& p, const Vec3d* n, bool includeDelta,
     } else {
       importance[s] = LightImportance(lights_[slot.light], p, n);
     }
+    if (factor) importance[s] *= factor[s];
     total += importance[s];
-  }
-  if (const float* factor = visibility_.At(p)) {
-    total = 0;
-    for (size_t s = 0; s < slots_.size(); ++s) {
-      importance[s] *= factor[s];
-      total += importance[s];
-    }
   }
   return total;
 }
