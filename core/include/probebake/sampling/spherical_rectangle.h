@@ -12,13 +12,17 @@
 //   InvertSphericalRectangleSample(p, o, s, ex, ey) -> u in [0,1)^2.
 // u.x sweeps the solid angle along ex, u.y the direction along ey within it.
 // Degenerate input (o in the plane, solid angle not positive): pdf 0 and the corner s returned.
-// Precision: the solid angle is a sum of four angles minus 2 pi, so its absolute error is ~1e-15
-// sr; use area sampling below ~1e-6 sr (relative error ~1e-9 there) - pbrt-v4 switches to area
-// sampling below 3e-4 sr in single precision.
+// Precision: the solid angle is Van Oosterom and Strackee's for the rectangle's two triangles,
+// one atan2 of sums that are positive wherever the rectangle looks small, so its relative error
+// is a few eps at any size (Urena et al.'s sum of four angles minus 2 pi has an absolute error of
+// ~1e-15 sr, a relative one of 1e-9 at 1e-6 sr; pbrt-v4 switches to area sampling below 3e-4 sr
+// in single precision). The sampling map itself needs no inverse trigonometry either.
 //
 // References:
 //   C. Urena, M. Fajardo, A. King, "An Area-Preserving Parametrization for Spherical Rectangles",
 //     Computer Graphics Forum 32(4) (EGSR), 2013.
+//   A. van Oosterom, J. Strackee, "The Solid Angle of a Plane Triangle", IEEE Transactions on
+//     Biomedical Engineering 30(2), 1983.
 //   M. Pharr, W. Jakob, G. Humphreys, "Physically Based Rendering", 4th ed. (pbrt-v4), 2023.
 #pragma once
 
