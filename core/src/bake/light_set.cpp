@@ -233,12 +233,21 @@ size_t LightSet::TreeLightCount() const {
 }
 
 namespace {
-// Below ~1e-6 sr the spherical rectangle's solid angle loses precision (spherical_rectangle.h).
+// A rectangle seen nearly edge-on subtends almost no solid angle however near it is; there the
+// solid-angle map degenerates (a sliver of the sphere spread over the whole rectangle), and area
+// sampling, well behaved at any angle, takes over.
 constexpr double kMaxSolidAnglePdf = 1e6;
-// Solid-angle sampling pays where a rectangle looks large (area sampling's pdf d^2 / (A cos)
-// varies strongly across it); where it spans less than ~8 degrees (area / d^2 < 0.02) area
-// sampling's radiance / pdf is nearly constant already, at a fraction of the cost.
-constexpr double kMinSolidAngleRatio = 0.02;
+// Solid-angle sampling pays only where a rectangle looks large: area sampling's radiance / pdf
+// varies across the light as cos / d^2, by (1 + (a / d)^2)^(-3/2) from its centre to an edge a
+// away, which is 28% where area / d^2 = 1 (a square of side d, spanning ~53 degrees) and 4% at
+// 0.1. Beyond that area sampling's noise is small next to the rest of the estimate's, at a
+// fraction of the cost (solid-angle sampling: ~150 ns a sample, probebake_sampling_bench).
+// Measured by the bench at 4096 samples per probe, one thread, with the threshold moved from 0.02
+// to 1: the demo room (a 1.5 m^2 ceiling light, probes 0.25 to 2.75 m below it) baked in 14% less
+// time with a 1.7% higher mean irradiance error (RMS std_error +1.6%), 11% less time to the same
+// error; the courtyard (a small lantern, sampled by solid angle only from points near it) in the
+// same time, RMS std_error +1.1%.
+constexpr double kMinSolidAngleRatio = 1;
 }  // namespace
 
 bool LightSet::UseSolidAngleSampling(const LightData& l, const Vec3d& p) const {
