@@ -30,8 +30,18 @@ void Project(int order, const Vec3d& w, const Vec3d& value, std::span<double> su
   }
 }
 
-double BalanceHeuristic(double pdfA, double pdfB) {
-  return pdfA / (pdfA + pdfB);
+// Veach's power heuristic with exponent 2, w_a = p_a^2 / (p_a^2 + p_b^2), written as 1 / (1 +
+// (p_b / p_a)^2) so that squares of tiny or huge pdfs neither underflow nor overflow (p_a = 0
+// gives 0, p_a = inf gives 1). Against the balance heuristic p_a / (p_a + p_b) it moves weight to
+// whichever technique is the likelier there, so less of the estimate rides on the other's rare
+// samples (uniform directions that happen to hit a small light), a discontinuous integrand that
+// Sobol points stratify poorly. The bench at 4096 samples per probe (one thread, equal time)
+// measured the mean irradiance error with Sobol: the closed-form sky and sphere light 0.374% ->
+// 0.152% (5.7x less time to equal error), the demo room 2.86% -> 2.82%, the courtyard 1.75% ->
+// 1.71%; with independent numbers 1.04% -> 1.12%, 3.84% -> 3.81% and 2.64% -> 2.65%.
+double PowerHeuristic(double pdfA, double pdfB) {
+  const double r = pdfB / pdfA;
+  return 1 / (1 + r * r);
 }
 
 // The random numbers of one scattering vertex, in the order they are drawn.
@@ -160,7 +170,7 @@ bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t
       if (lights_.Sample(p, nullptr, importanceProbe, totalProbe, uSelect, uLight, &ls)) {
         const Vec3d tr = Shadow<kMedium>(origin, ls, &local);
         if (MaxComponent(tr) > 0) {
-          const double w = mis_ ? BalanceHeuristic(ls.pdf, pdfProbe) : 1.0;
+          const double w = mis_ ? PowerHeuristic(ls.pdf, pdfProbe) : 1.0;
           Project(order, ls.wi, ls.radiance * tr * (w / ls.pdf), sum);
         }
       }
@@ -215,7 +225,7 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
             const double phase = HenyeyGreensteinPdf(Dot(ls.wi, wi), g);
             const Vec3d tr = Shadow<true>(xf, ls, counters);
             if (MaxComponent(tr) > 0) {
-              const double w = (mis_ && !ls.delta) ? BalanceHeuristic(ls.pdf, phase) : 1.0;
+              const double w = (mis_ && !ls.delta) ? PowerHeuristic(ls.pdf, phase) : 1.0;
               radiance += beta * ls.radiance * tr * (phase * w / ls.pdf);
             }
           }
@@ -244,7 +254,7 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
     if (!found) {
       if (countEmission_) {
         lights_.ForEachEscaped(nPrev, importancePrev, totalPrev, wi, [&](const LightHit& h) {
-          const double w = mis_ ? BalanceHeuristic(pdfDir, h.pdf) : 1.0;
+          const double w = mis_ ? PowerHeuristic(pdfDir, h.pdf) : 1.0;
           radiance += beta * h.radiance * w;
         });
       }
@@ -253,7 +263,7 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
     if (countEmission_) {
       LightHit h;
       if (lights_.EvalSurfaceHit(pPrev, nPrev, importancePrev, totalPrev, wi, hit, &h)) {
-        const double w = mis_ ? BalanceHeuristic(pdfDir, h.pdf) : 1.0;
+        const double w = mis_ ? PowerHeuristic(pdfDir, h.pdf) : 1.0;
         radiance += beta * h.radiance * w;
       }
     }
@@ -281,7 +291,7 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
           const Vec3d tr = Shadow<kMedium>(spawn, ls, counters);
           if (MaxComponent(tr) > 0) {
             const double pdfBsdf = cosTheta * kInvPi;
-            const double w = (mis_ && !ls.delta) ? BalanceHeuristic(ls.pdf, pdfBsdf) : 1.0;
+            const double w = (mis_ && !ls.delta) ? PowerHeuristic(ls.pdf, pdfBsdf) : 1.0;
             radiance += beta * albedo * ls.radiance * tr * (kInvPi * cosTheta * w / ls.pdf);
           }
         }

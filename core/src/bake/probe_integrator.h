@@ -6,7 +6,7 @@
 //     pdf 1/4π), a path traced from p gives L(p, ω); contribution L Y(ω) / pdf;
 //   - light sampling (NEE): a light chosen and sampled at p, one shadow ray; contribution
 //     Le Y(ω_l) / pdf_l.
-// With Estimator::kNeeMis both are weighted by the balance heuristic w_a = p_a / (p_a + p_b)
+// With Estimator::kNeeMis both are weighted by the power heuristic w_a = p_a^2 / (p_a^2 + p_b^2)
 // (one sample per technique), so emission found by either is counted exactly once. Along the
 // path: Lambertian vertices with cosine-weighted continuation, NEE with the same MIS, Russian
 // roulette after rrMinDepth bounces (survival = max throughput channel, capped at 1), and at most
@@ -99,7 +99,7 @@ class ProbeIntegrator {
   std::optional<HomogeneousMedium> medium_;
   bool lightSampling_;  // NEE on
   bool countEmission_;  // direction-sampled rays count the emission they hit
-  bool mis_;            // weight the two by the balance heuristic
+  bool mis_;            // weight the two by the power heuristic
 };
 
 }  // namespace probebake
