@@ -36,15 +36,15 @@ Setup MakeSetup(const Vec3d& o, const Vec3d& s, const Vec3d& ex, const Vec3d& ey
 }
 
 // Quantities of the spherical quad over [x0, x1] x [y0, y1] at height z0 < 0 that Urena et al.'s
-// sampling needs, without inverse trigonometry. Their edge-plane normals n0..n3 (cross products of
-// consecutive corner directions) meet at interior angles g_i, cos g_i = -n_i.n_{i+1}, whose sine
-// is the length of n_i x n_{i+1}: both are ratios of the corners' coordinates and distances. The
-// sampling uses b0 = n0.z, b1 = n2.z and k = 2 pi - g2 - g3 through cos k and sin k only. The
-// solid angle is the two triangles' of Van Oosterom and Strackee, tan(omega_t / 2) = |a.(b x c)|
-// / (|a||b||c| + (a.b)|c| + (a.c)|b| + (b.c)|a|), summed as one angle: a sum of positive terms
-// wherever the rectangle looks small, so the solid angle keeps a relative error of a few eps
-// however small it is (the sum of four angles minus 2 pi it replaces kept an absolute one, and
-// cost four acos).
+// sampling needs, with one atan2 in place of four acos. Their edge-plane normals n0..n3 (cross
+// products of consecutive corner directions) meet at interior angles g_i, cos g_i = -n_i.n_{i+1},
+// whose sine is the length of n_i x n_{i+1}: both are ratios of the corners' coordinates and
+// distances. The sampling uses b0 = n0.z, b1 = n2.z and k = 2 pi - g2 - g3 through cos k and sin k
+// only. The solid angle is the two triangles' of Van Oosterom and Strackee, tan(omega_t / 2) =
+// |a.(b x c)| / (|a||b||c| + (a.b)|c| + (a.c)|b| + (b.c)|a|), summed as one angle: a sum of
+// positive terms wherever the rectangle looks small, so the solid angle keeps a relative error of a
+// few eps however small it is (the sum of four angles minus 2 pi it replaces kept an absolute one,
+// and cost four acos).
 struct Quad {
   double b0, b1, cosK, sinK, solidAngle;
 };

@@ -15,8 +15,9 @@
 // Precision: the solid angle is Van Oosterom and Strackee's for the rectangle's two triangles,
 // one atan2 of sums that are positive wherever the rectangle looks small, so its relative error
 // is a few eps at any size (Urena et al.'s sum of four angles minus 2 pi has an absolute error of
-// ~1e-15 sr, a relative one of 1e-9 at 1e-6 sr; pbrt-v4 switches to area sampling below 3e-4 sr
-// in single precision). The sampling map itself needs no inverse trigonometry either.
+// ~1e-15 sr: 5e-11 relative at 1e-6 sr, 2% at 1e-14 sr; pbrt-v4 switches to area sampling below
+// 3e-4 sr in single precision). That atan2 replaces the four acos of Urena et al.'s form; the
+// sampling map itself needs no inverse trigonometry.
 //
 // References:
 //   C. Urena, M. Fajardo, A. King, "An Area-Preserving Parametrization for Spherical Rectangles",
