@@ -75,10 +75,10 @@ Quad MakeQuad(double x0In, double x1In, double y0In, double y1In, double z0In) {
   q.sinK = -(s2 * c3 + c2 * s3);  // -sin(g2 + g3)
   // Triangles (00, 10, 11) and (00, 11, 01): the same triple product, |z0| times the area.
   const double num = -z0 * (x1 - x0) * (y1 - y0);
-  const double zDot = zz;  // the z part of every corner-corner dot product
-  const double dot0010 = x0 * x1 + y0 * y0 + zDot, dot0011 = x0 * x1 + y0 * y1 + zDot;
-  const double dot1011 = x1 * x1 + y0 * y1 + zDot, dot0001 = x0 * x0 + y0 * y1 + zDot;
-  const double dot1101 = x1 * x0 + y1 * y1 + zDot;
+  // Corner-corner dot products (their z parts are all z0^2).
+  const double dot0010 = x0 * x1 + y0 * y0 + zz, dot0011 = x0 * x1 + y0 * y1 + zz;
+  const double dot1011 = x1 * x1 + y0 * y1 + zz, dot0001 = x0 * x0 + y0 * y1 + zz;
+  const double dot1101 = x1 * x0 + y1 * y1 + zz;
   const double den1 = d00 * d10 * d11 + dot0010 * d11 + dot0011 * d10 + dot1011 * d00;
   const double den2 = d00 * d11 * d01 + dot0011 * d01 + dot0001 * d11 + dot1101 * d00;
   // (den1 + i num)(den2 + i num) has the argument omega / 2, in [0, pi).
