@@ -44,6 +44,19 @@ double PowerHeuristic(double pdfA, double pdfB) {
   return 1 / (1 + r * r);
 }
 
+// The 3-bit x and y interleaved, x in the even places: the cell's index along a Morton (Z-order)
+// curve over 8 x 8 cells.
+uint32_t MortonInterleave(uint32_t x, uint32_t y) {
+  const auto spread = [](uint32_t v) {
+    v = (v | (v << 8)) & 0x00FF00FFu;
+    v = (v | (v << 4)) & 0x0F0F0F0Fu;
+    v = (v | (v << 2)) & 0x33333333u;
+    v = (v | (v << 1)) & 0x55555555u;
+    return v;
+  };
+  return spread(x) | (spread(y) << 1);
+}
+
 // The random numbers of one scattering vertex, in the order they are drawn.
 struct VertexNumbers {
   double select = 0;  // light choice
@@ -65,8 +78,13 @@ VertexNumbers DrawVertexNumbers(S& sampler) {
 }  // namespace
 
 ProbeIntegrator::ProbeIntegrator(const Scene& scene, const TracerScene& tracer,
-                                 const LightSet& lights, const BakeSettings& settings)
-    : scene_(scene), tracer_(tracer), lights_(lights), settings_(settings) {
+                                 const LightSet& lights, const BakeSettings& settings,
+                                 bool probePackets)
+    : scene_(scene),
+      tracer_(tracer),
+      lights_(lights),
+      settings_(settings),
+      probePackets_(probePackets) {
   if (scene.medium) medium_.emplace(*scene.medium, tracer.offset());
   switch (settings.estimator) {
     case Estimator::kNeeMis:
@@ -81,13 +99,12 @@ ProbeIntegrator::ProbeIntegrator(const Scene& scene, const TracerScene& tracer,
   }
 }
 
-bool ProbeIntegrator::Unoccluded(const Vec3f& origin, const LightSample& s, TraceCounters* counters,
-                                 Vec3d* dir, double* tMax) const {
-  ++counters->rays;
+bool ProbeIntegrator::ShadowRay(const Vec3f& origin, const LightSample& s, Vec3d* dir,
+                                double* tMax) const {
   if (!std::isfinite(s.distance)) {
     *dir = s.wi;
     *tMax = kInf;
-    return !tracer_.Occluded(origin, s.wi, kInf);
+    return true;
   }
   // Aim from the ray's actual origin (offset off its surface, not the shading point itself) at
   // the sampled point, and stop short of the light's own surface by the float error of the
@@ -98,7 +115,13 @@ bool ProbeIntegrator::Unoccluded(const Vec3f& origin, const LightSample& s, Trac
   const double maxAbs = std::max({MaxComponent(Abs(o)), MaxComponent(Abs(s.point)), s.vertexScale});
   *tMax = d - FloatSlack(maxAbs);
   *dir = d > 0 ? v / d : s.wi;
-  if (*tMax <= 0) return true;
+  return *tMax > 0;
+}
+
+bool ProbeIntegrator::Unoccluded(const Vec3f& origin, const LightSample& s, TraceCounters* counters,
+                                 Vec3d* dir, double* tMax) const {
+  ++counters->rays;
+  if (!ShadowRay(origin, s, dir, tMax)) return true;
   return !tracer_.Occluded(origin, *dir, *tMax);
 }
 
@@ -144,48 +167,176 @@ bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t
       scratchB(lights_.ImportanceSize());
   const double totalProbe = lights_.Importance(p, nullptr, /*includeDelta=*/false, importanceProbe);
   const double pdfProbe = UniformSpherePdf();
+  const bool probeLightSample = lightSampling_ && totalProbe > 0;
+  // Without a medium, the rays from the probe itself are traced a chunk of samples at a time, as
+  // packets, before the rest of the chunk's paths.
+  std::unique_ptr<ProbeRays> probeRays;
+  if (!kMedium && probePackets_ && count >= kMinPacketSamples)
+    probeRays = std::make_unique<ProbeRays>();
 
-  for (int64_t i = 0; i < count; ++i) {
-    if ((i & 255) == 0) {
-      if (shared) shared->Add(local);
-      local = {};
-      if (cancel && cancel->load(std::memory_order_relaxed)) return false;
+  const int64_t chunk = probeRays ? kChunk : count;
+  for (int64_t c = 0; c < count; c += chunk) {
+    const int n = int(std::min<int64_t>(chunk, count - c));
+    if (probeRays) {
+      TraceProbeRays(origin, p, importanceProbe, totalProbe, c, n, sampler, probeRays.get(),
+                     &local);
     }
-    sampler.StartSample(uint64_t(i));
-    const Vec2d uDirection = sampler.Get2D();
-    const double uSelect = sampler.Get1D();
-    const Vec2d uLight = sampler.Get2D();
-    // The path first, the light sample after it: the path's work hides the memory latency of the
-    // light sample's tables (a large environment map), loaded from here on. The projections are
-    // still added light sample first, so the sum's bits do not change.
-    if (lightSampling_ && totalProbe > 0) lights_.Prefetch(uLight);
+    for (int j = 0; j < n; ++j) {
+      const int64_t i = c + j;
+      if ((i & 255) == 0) {
+        if (shared) shared->Add(local);
+        local = {};
+        if (cancel && cancel->load(std::memory_order_relaxed)) return false;
+      }
+      sampler.StartSample(uint64_t(i));
+      const Vec2d uDirection = sampler.Get2D();
+      const double uSelect = sampler.Get1D();
+      const Vec2d uLight = sampler.Get2D();
+      // The path first, the light sample after it: the path's work hides the memory latency of
+      // the light sample's tables (a large environment map), loaded from here on. The
+      // projections are still added light sample first, so the sum's bits do not change.
+      if (probeLightSample && !probeRays) lights_.Prefetch(uLight);
 
-    const Vec3d wi = SampleUniformSphere(uDirection);
-    std::copy(importanceProbe.begin(), importanceProbe.end(), scratchA.begin());
-    const Vec3d radiance = TracePath<kMedium>(origin, p, wi, pdfProbe, scratchA, totalProbe,
-                                              scratchB, sampler, &local);
+      FirstSegment first;
+      Vec3d wi;
+      if (probeRays) {
+        // TraceProbeRays found this direction from the same numbers.
+        wi = probeRays->wi[j];
+        first.found = probeRays->found[probeRays->hitSlot[j]];
+        first.hit = &probeRays->hit[probeRays->hitSlot[j]];
+      } else {
+        wi = SampleUniformSphere(uDirection);
+      }
+      std::copy(importanceProbe.begin(), importanceProbe.end(), scratchA.begin());
+      const Vec3d radiance =
+          TracePath<kMedium>(origin, p, wi, pdfProbe, probeRays ? &first : nullptr, scratchA,
+                             totalProbe, scratchB, sampler, &local);
 
-    if (lightSampling_ && totalProbe > 0) {
-      LightSample ls;
-      if (lights_.Sample(p, nullptr, importanceProbe, totalProbe, uSelect, uLight, &ls)) {
-        const Vec3d tr = Shadow<kMedium>(origin, ls, &local);
+      if (probeLightSample) {
+        LightSample ls;
+        Vec3d tr;
+        if (probeRays) {
+          const uint16_t slot = probeRays->shadowSlot[j];
+          if (slot != kNoShadowRay) {
+            ls = probeRays->light[j];
+            if (!probeRays->occluded[slot]) tr = {1, 1, 1};
+          }
+        } else if (lights_.Sample(p, nullptr, importanceProbe, totalProbe, uSelect, uLight, &ls)) {
+          tr = Shadow<kMedium>(origin, ls, &local);
+        }
         if (MaxComponent(tr) > 0) {
           const double w = mis_ ? PowerHeuristic(ls.pdf, pdfProbe) : 1.0;
           Project(order, ls.wi, ls.radiance * tr * (w / ls.pdf), sum);
         }
       }
+      if (MaxComponent(radiance) > 0) Project(order, wi, radiance / pdfProbe, sum);
+      ++local.samples;
     }
-    if (MaxComponent(radiance) > 0) Project(order, wi, radiance / pdfProbe, sum);
-    ++local.samples;
   }
   if (shared) shared->Add(local);
   return true;
 }
 
+template <typename S>
+void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
+                                     std::span<const double> importance, double total,
+                                     int64_t first, int n, S& sampler, ProbeRays* out,
+                                     TraceCounters* counters) const {
+  // Packets want rays that are neighbours on the sphere; Sobol points in index order are spread
+  // over the whole sphere on purpose. So the rays are put in packets in the order of a counting
+  // sort by cell: the probe directions by their cell of 2^kCellBits x 2^kCellBits in the (z, phi)
+  // square they are drawn from (SampleUniformSphere), along a Morton curve (an aligned chunk of
+  // Sobol points is a (0, 2 kCellBits, 2)-net: one point in each); the shadow rays by light and
+  // by octahedral cell of their direction. The rays' order changes only which rays share a packet,
+  // never a result.
+  static_assert(kChunk == (1 << (2 * kCellBits)));
+  static_assert(kChunk < kNoShadowRay);
+  // shadowCell's values for samples without a shadow ray.
+  constexpr uint16_t kNoLightSample = 0xFFFF, kVisible = 0xFFFE;
+  const bool lightSample = lightSampling_ && total > 0;
+  uint16_t hitCell[kChunk], shadowCell[kChunk];
+  int hitStart[kChunk + 1] = {}, shadowStart[kChunk + 1] = {};
+  Vec3d shadowDir[kChunk];
+  double shadowTMax[kChunk];
+  const auto cellIndex = [](double x) {  // x in [0, 1]
+    return std::min(uint32_t(x * (1 << kCellBits)), (1u << kCellBits) - 1);
+  };
+  for (int j = 0; j < n; ++j) {
+    sampler.StartSample(uint64_t(first + j));
+    const Vec2d uDirection = sampler.Get2D();
+    out->wi[j] = SampleUniformSphere(uDirection);
+    hitCell[j] = uint16_t(MortonInterleave(cellIndex(uDirection.x), cellIndex(uDirection.y)));
+    ++hitStart[hitCell[j] + 1];
+
+    shadowCell[j] = kNoLightSample;
+    if (!lightSample) continue;
+    const double uSelect = sampler.Get1D();
+    const Vec2d uLight = sampler.Get2D();
+    LightSample& ls = out->light[j];
+    if (!lights_.Sample(p, nullptr, importance, total, uSelect, uLight, &ls)) continue;
+    ++counters->rays;  // counted as Unoccluded counts it, traced or not
+    if (!ShadowRay(origin, ls, &shadowDir[j], &shadowTMax[j])) {
+      shadowCell[j] = kVisible;
+      continue;
+    }
+    // Octahedral map of the direction, then cells of 2^(kCellBits - 1) squared per light.
+    const Vec3d& d = shadowDir[j];
+    const double l1 = std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z);
+    double ox = d.x / l1, oy = d.y / l1;
+    if (d.z < 0) {
+      const double fx = (1 - std::fabs(oy)) * (ox < 0 ? -1 : 1);
+      oy = (1 - std::fabs(ox)) * (oy < 0 ? -1 : 1);
+      ox = fx;
+    }
+    constexpr int kHalf = kCellBits - 1;
+    const uint32_t cx = cellIndex(0.5 * (ox + 1)) >> 1, cy = cellIndex(0.5 * (oy + 1)) >> 1;
+    shadowCell[j] = uint16_t(((ls.light % 4) << (2 * kHalf)) | MortonInterleave(cx, cy));
+    ++shadowStart[shadowCell[j] + 1];
+  }
+
+  for (int c = 0; c < kChunk; ++c) hitStart[c + 1] += hitStart[c];
+  Vec3d sortedDir[kChunk];
+  for (int j = 0; j < n; ++j) {
+    const int k = hitStart[hitCell[j]]++;
+    out->hitSlot[j] = uint16_t(k);
+    sortedDir[k] = out->wi[j];
+  }
+  constexpr int kWidth = TracerScene::kPacketWidth;
+  for (int k = 0; k < n; k += kWidth) {
+    const int m = std::min(kWidth, n - k);
+    tracer_.IntersectPacket(origin, std::span<const Vec3d>(sortedDir + k, size_t(m)), out->hit + k,
+                            out->found + k);
+  }
+  counters->rays += n;
+  if (!lightSample) return;
+
+  for (int c = 0; c < kChunk; ++c) shadowStart[c + 1] += shadowStart[c];
+  const int rays = shadowStart[kChunk];
+  double sortedTMax[kChunk];
+  for (int j = 0; j < n; ++j) {
+    if (shadowCell[j] == kNoLightSample) {
+      out->shadowSlot[j] = kNoShadowRay;
+    } else if (shadowCell[j] == kVisible) {
+      out->shadowSlot[j] = uint16_t(rays);  // past the traced rays: never occluded
+    } else {
+      const int k = shadowStart[shadowCell[j]]++;
+      out->shadowSlot[j] = uint16_t(k);
+      sortedDir[k] = shadowDir[j];
+      sortedTMax[k] = shadowTMax[j];
+    }
+  }
+  for (int k = 0; k < rays; k += kWidth) {
+    const int m = std::min(kWidth, rays - k);
+    tracer_.OccludedPacket(origin, std::span<const Vec3d>(sortedDir + k, size_t(m)), sortedTMax + k,
+                           out->occluded + k);
+  }
+  out->occluded[rays] = false;
+}
+
 template <bool kMedium, typename S>
 Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d wi, double pdfDir,
-                                 std::span<double> importancePrev, double totalPrev,
-                                 std::span<double> scratch, S& sampler,
+                                 const FirstSegment* firstSegment, std::span<double> importancePrev,
+                                 double totalPrev, std::span<double> scratch, S& sampler,
                                  TraceCounters* counters) const {
   Vec3d radiance, beta{1, 1, 1};
   Vec3f origin = originIn;
@@ -202,8 +353,14 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
       if (lightSampling_) lights_.Prefetch(u.light);
     }
     SurfaceHit hit;
-    ++counters->rays;
-    const bool found = tracer_.Intersect(origin, wi, kInf, &hit);
+    bool found;
+    if (bounce == 1 && firstSegment) {
+      found = firstSegment->found;
+      if (found) hit = *firstSegment->hit;
+    } else {
+      ++counters->rays;
+      found = tracer_.Intersect(origin, wi, kInf, &hit);
+    }
 
     if constexpr (kMedium) {
       const double uChannel = sampler.Get1D();

@@ -26,10 +26,17 @@
 // distance (1D); then per scattering vertex: light choice (1D), light point (2D), continuation
 // (2D), roulette (1D). Without a medium a vertex's numbers are drawn before the ray that finds it
 // is traced (LightSet::Prefetch), and left unused when there is no vertex: the order is the same.
+//
+// Without a medium, a batch of at least kMinPacketSamples samples traces its rays from the probe
+// (each path's first ray, each probe light sample's shadow ray) ahead of the paths, kChunk samples
+// at a time, as Embree packets of rays sorted by direction: rays that share an origin and nearly a
+// direction share most of their BVH traversal. Only the grouping of rays into packets changes;
+// each sample's random numbers, rays and the order of the sum do not.
 #pragma once
 
 #include <atomic>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <span>
 #include <vector>
@@ -59,8 +66,10 @@ struct SharedCounters {
 
 class ProbeIntegrator {
  public:
+  // probePackets false: every ray is traced alone (tests compare the two ways; the results
+  // agree to float rounding of the hits).
   ProbeIntegrator(const Scene& scene, const TracerScene& tracer, const LightSet& lights,
-                  const BakeSettings& settings);
+                  const BakeSettings& settings, bool probePackets = true);
 
   // Adds to `sum` ((shOrder+1)^2 x 3 doubles, coefficient-major RGB) the contributions of samples
   // [0, count) of the random stream (seed, Hash(probeKey, batch)) for the probe at local position
@@ -77,14 +86,52 @@ class ProbeIntegrator {
                             TraceCounters* counters) const;
 
  private:
+  // Rays from the probe are traced as packets of samples [c, c + kChunk) at a time (when a batch
+  // has at least kMinPacketSamples; fewer are too spread over the sphere to pay for the sort).
+  static constexpr int kCellBits = 4;
+  static constexpr int kChunk = 1 << (2 * kCellBits);
+  static constexpr int kMinPacketSamples = 128;
+  static constexpr uint16_t kNoShadowRay = 0xFFFF;
+  // A chunk's rays from the probe: each sample's first path ray and its light sample's shadow
+  // ray, traced ahead of the paths (kMedium false only). "By sample": index j of sample c + j;
+  // "by slot": the ray's place in the packets.
+  struct ProbeRays {
+    Vec3d wi[kChunk];           // by sample: the probe direction
+    uint16_t hitSlot[kChunk];   // by sample
+    bool found[kChunk];         // by slot: whether the first ray hit
+    SurfaceHit hit[kChunk];     // by slot: the hit, valid when found
+    LightSample light[kChunk];  // by sample: the light sample, when shadowSlot is not kNoShadowRay
+    uint16_t shadowSlot[kChunk];  // by sample: kNoShadowRay when no light was sampled
+    bool occluded[kChunk + 1];    // by slot
+  };
+  // One path's first ray.
+  struct FirstSegment {
+    bool found = false;
+    const SurfaceHit* hit = nullptr;  // valid when found
+  };
+
   template <bool kMedium, typename S>
   bool TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t batch, int64_t count,
                       std::span<double> sum, SharedCounters* shared,
                       const std::atomic<bool>* cancel) const;
+  // Fills `out` for samples [first, first + n) of `sampler`'s stream, n <= kChunk, at the probe
+  // at p (float origin `origin`, light importance `importance` summing to `total`): draws their
+  // first random dimensions, samples the lights as TraceBatchWith would, and traces the rays.
+  template <typename S>
+  void TraceProbeRays(const Vec3f& origin, const Vec3d& p, std::span<const double> importance,
+                      double total, int64_t first, int n, S& sampler, ProbeRays* out,
+                      TraceCounters* counters) const;
+  // The radiance arriving at p from direction wi, by the path traced from `origin` (p's float
+  // ray origin). firstSegment: the hit of the path's first ray, traced already, or nullptr to
+  // trace it here.
   template <bool kMedium, typename S>
   Vec3d TracePath(const Vec3f& origin, const Vec3d& p, Vec3d wi, double pdfDir,
-                  std::span<double> importancePrev, double totalPrev, std::span<double> scratch,
-                  S& sampler, TraceCounters* counters) const;
+                  const FirstSegment* firstSegment, std::span<double> importancePrev,
+                  double totalPrev, std::span<double> scratch, S& sampler,
+                  TraceCounters* counters) const;
+  // The shadow ray from `origin` to the sampled light point: false when none is needed (the
+  // point lies within float error of the origin: visible).
+  bool ShadowRay(const Vec3f& origin, const LightSample& s, Vec3d* dir, double* tMax) const;
   // True when nothing lies between `origin` and the sampled light point; `dir` and `tMax` get
   // the shadow ray actually traced.
   bool Unoccluded(const Vec3f& origin, const LightSample& s, TraceCounters* counters, Vec3d* dir,
@@ -100,6 +147,7 @@ class ProbeIntegrator {
   bool lightSampling_;  // NEE on
   bool countEmission_;  // direction-sampled rays count the emission they hit
   bool mis_;            // weight the two by the power heuristic
+  bool probePackets_;   // trace the rays from the probe as packets where they pay
 };
 
 }  // namespace probebake

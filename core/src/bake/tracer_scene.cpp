@@ -270,34 +270,110 @@ bool TracerScene::Intersect(const Vec3f& origin, const Vec3d& dir, double tMax,
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(impl_->scene, &context, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+  FillHit(rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v,
+          Vec3d{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z}, rh.ray.tfar, origin, dir, hit);
+  return true;
+}
 
-  const GeomInfo info = geoms_[rh.hit.geomID];
-  hit->t = rh.ray.tfar;
+void TracerScene::IntersectPacket(const Vec3f& origin, std::span<const Vec3d> dirs,
+                                  SurfaceHit* hits, bool* found) const {
+  PB_CHECK_LE(dirs.size(), size_t(kPacketWidth));
+  static_assert(kPacketWidth == 8, "rtcIntersect8 below");
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  // Coherent rays (the caller sorts them by direction) share most of their BVH traversal.
+  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  alignas(32) int valid[kPacketWidth];
+  alignas(32) RTCRayHit8 rh;
+  for (int k = 0; k < kPacketWidth; ++k) {
+    const bool active = size_t(k) < dirs.size();
+    valid[k] = active ? -1 : 0;
+    const Vec3d& dir = dirs[active ? k : 0];
+    rh.ray.org_x[k] = origin.x;
+    rh.ray.org_y[k] = origin.y;
+    rh.ray.org_z[k] = origin.z;
+    rh.ray.tnear[k] = 0;
+    rh.ray.dir_x[k] = float(dir.x);
+    rh.ray.dir_y[k] = float(dir.y);
+    rh.ray.dir_z[k] = float(dir.z);
+    rh.ray.time[k] = 0;
+    rh.ray.tfar[k] = std::numeric_limits<float>::infinity();
+    rh.ray.mask[k] = 0xFFFFFFFFu;
+    rh.ray.id[k] = 0;
+    rh.ray.flags[k] = 0;
+    rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+  }
+  rtcIntersect8(valid, impl_->scene, &context, &rh);
+  for (size_t k = 0; k < dirs.size(); ++k) {
+    found[k] = rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
+    if (!found[k]) continue;
+    FillHit(rh.hit.geomID[k], rh.hit.primID[k], rh.hit.u[k], rh.hit.v[k],
+            Vec3d{rh.hit.Ng_x[k], rh.hit.Ng_y[k], rh.hit.Ng_z[k]}, rh.ray.tfar[k], origin, dirs[k],
+            &hits[k]);
+  }
+}
+
+void TracerScene::OccludedPacket(const Vec3f& origin, std::span<const Vec3d> dirs,
+                                 const double* tMax, bool* occluded) const {
+  PB_CHECK_LE(dirs.size(), size_t(kPacketWidth));
+  RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  alignas(32) int valid[kPacketWidth];
+  alignas(32) RTCRay8 ray;
+  for (int k = 0; k < kPacketWidth; ++k) {
+    const bool active = size_t(k) < dirs.size();
+    valid[k] = active ? -1 : 0;
+    RTCRay one;
+    InitRay(one, origin, dirs[active ? k : 0], active ? tMax[k] : 0);
+    ray.org_x[k] = one.org_x;
+    ray.org_y[k] = one.org_y;
+    ray.org_z[k] = one.org_z;
+    ray.tnear[k] = one.tnear;
+    ray.dir_x[k] = one.dir_x;
+    ray.dir_y[k] = one.dir_y;
+    ray.dir_z[k] = one.dir_z;
+    ray.time[k] = one.time;
+    ray.tfar[k] = one.tfar;
+    ray.mask[k] = one.mask;
+    ray.id[k] = one.id;
+    ray.flags[k] = one.flags;
+  }
+  rtcOccluded8(valid, impl_->scene, &context, &ray);
+  for (size_t k = 0; k < dirs.size(); ++k) occluded[k] = ray.tfar[k] < 0;
+}
+
+void TracerScene::FillHit(uint32_t geomID, uint32_t primID, float u, float v, const Vec3d& ng,
+                          float tfar, const Vec3f& origin, const Vec3d& dir,
+                          SurfaceHit* hit) const {
+  const GeomInfo info = geoms_[geomID];
+  hit->t = tfar;
   hit->kind = info.kind;
   hit->index = info.index;
-  hit->prim = rh.hit.primID;
+  hit->prim = primID;
   if (info.kind == SurfaceKind::kMesh) {
-    const float* v = meshVerts_[info.index];
-    const uint32_t* idx = meshIndices_[info.index] + 3 * rh.hit.primID;
+    const float* verts = meshVerts_[info.index];
+    const uint32_t* idx = meshIndices_[info.index] + 3 * primID;
     // Interpolated in double: the point lies on the float triangle's plane to ~1e-16 of the
     // vertex magnitudes (a float interpolation would leave it ulps of those magnitudes off it).
-    const double u = rh.hit.u, w = rh.hit.v, b0 = 1 - u - w;
+    const double bu = u, bw = v, b0 = 1 - bu - bw;
     double scale = 0;
     for (int k = 0; k < 3; ++k) {
-      const float a = v[3 * idx[0] + k], b = v[3 * idx[1] + k], c = v[3 * idx[2] + k];
-      hit->p[k] = b0 * a + u * b + w * c;
+      const float a = verts[3 * idx[0] + k], b = verts[3 * idx[1] + k], c = verts[3 * idx[2] + k];
+      hit->p[k] = b0 * a + bu * b + bw * c;
       scale = std::max({scale, double(std::fabs(a)), double(std::fabs(b)), double(std::fabs(c))});
     }
     hit->vertexScale = scale;
     // Embree's geometric normal, (v1 - v0) x (v2 - v0) like ours: no table lookup (a cache miss
     // per hit in large scenes).
-    hit->ng = Normalize(Vec3d{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z});
+    hit->ng = Normalize(ng);
   } else {
     // Area lights end paths: their hit point is needed for pdfs only, never to spawn rays.
     hit->p = Vec3d(origin) + dir * hit->t;
-    hit->ng = Normalize(Vec3d{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z});
+    hit->ng = Normalize(ng);
   }
-  return true;
 }
 
 bool TracerScene::Occluded(const Vec3f& origin, const Vec3d& dir, double tMax) const {

@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -43,6 +44,17 @@ class TracerScene {
 
   // Nearest hit along origin + t dir, t in (0, tMax); dir unit. Returns false on a miss.
   bool Intersect(const Vec3f& origin, const Vec3d& dir, double tMax, SurfaceHit* hit) const;
+  // Rays traced together by IntersectPacket.
+  static constexpr int kPacketWidth = 8;
+  // Intersect(origin, dirs[k], inf, &hits[k]) for up to kPacketWidth unit directions from one
+  // origin, traced as one packet: found[k] is its return value (hits[k] is left alone on a miss).
+  // Cheaper per ray than Intersect when the directions are close, since they share most of the
+  // BVH traversal; the hits may differ from Intersect's in the last float bits.
+  void IntersectPacket(const Vec3f& origin, std::span<const Vec3d> dirs, SurfaceHit* hits,
+                       bool* found) const;
+  // occluded[k] = Occluded(origin, dirs[k], tMax[k]) for up to kPacketWidth rays, as one packet.
+  void OccludedPacket(const Vec3f& origin, std::span<const Vec3d> dirs, const double* tMax,
+                      bool* occluded) const;
   // True when anything lies along origin + t dir, t in (0, tMax).
   bool Occluded(const Vec3f& origin, const Vec3d& dir, double tMax) const;
   // True when a mesh triangle lies within `radius` of p (area lights' surfaces are not counted).
@@ -70,6 +82,9 @@ class TracerScene {
 
   // Calls visit(mesh, geomID, primID, a, b, c) with the local vertices of mesh triangles whose
   // bounds come within `radius` of p (Embree's point query), until it returns true.
+  // Fills `hit` from Embree's hit record of the ray origin + t dir.
+  void FillHit(uint32_t geomID, uint32_t primID, float u, float v, const Vec3d& ng, float tfar,
+               const Vec3f& origin, const Vec3d& dir, SurfaceHit* hit) const;
   template <typename Visit>
   void VisitMeshTrianglesNear(const Vec3d& p, double radius, Visit&& visit) const;
 
