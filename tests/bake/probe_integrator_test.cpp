@@ -101,5 +101,47 @@ TEST(ProbeIntegrator, PacketsAtTheProbeChangeNoResult) {
   }
 }
 
+// Batches traced together by TraceBatches (their probe rays share packets) sum as each would
+// alone, whatever their sizes (an empty one among them, chunks that straddle batches), and
+// count the same work. Tolerance as above.
+TEST(ProbeIntegrator, BatchesTracedTogetherSumAsAlone) {
+  const Scene scene = RoomWithOpening();
+  auto tracer = TracerScene::Build(scene, LocalOrigin(scene));
+  ASSERT_TRUE(tracer.ok()) << tracer.status();
+  const LightSet lights(scene, **tracer);
+  const BakeSettings settings;
+  const ProbeIntegrator integrator(scene, **tracer, lights, settings);
+  const Vec3d p = Vec3d{-1.5, 1.8, 1.2} - (*tracer)->offset();
+  const int64_t counts[] = {64, 64, 0, 37, 91, 200};
+  const size_t coeffs = size_t(3 * ShCoeffCount(settings.shOrder));
+  constexpr uint32_t kFirstBatch = 5;
+
+  std::vector<std::vector<double>> together(std::size(counts), std::vector<double>(coeffs));
+  std::vector<ProbeIntegrator::BatchWork> work;
+  for (size_t k = 0; k < std::size(counts); ++k) work.push_back({counts[k], together[k]});
+  SharedCounters togetherCounters;
+  ASSERT_TRUE(integrator.TraceBatches(p, 17, kFirstBatch, work, &togetherCounters, nullptr));
+
+  SharedCounters aloneCounters;
+  for (size_t k = 0; k < std::size(counts); ++k) {
+    SCOPED_TRACE(::testing::Message() << "batch " << k);
+    std::vector<double> alone(coeffs);
+    ASSERT_TRUE(integrator.TraceBatch(p, 17, kFirstBatch + uint32_t(k), counts[k], alone,
+                                      &aloneCounters, nullptr));
+    double scale = 0;
+    for (double v : alone) scale = std::max(scale, std::fabs(v));
+    if (counts[k] == 0) {
+      EXPECT_EQ(scale, 0);
+      EXPECT_EQ(together[k], alone);
+      continue;
+    }
+    ASSERT_GT(scale, 0);
+    for (size_t i = 0; i < coeffs; ++i)
+      EXPECT_NEAR(together[k][i], alone[i], 1e-5 * scale) << "coefficient " << i / 3;
+  }
+  EXPECT_EQ(togetherCounters.samples.load(), aloneCounters.samples.load());
+  EXPECT_EQ(togetherCounters.rays.load(), aloneCounters.rays.load());
+}
+
 }  // namespace
 }  // namespace probebake

@@ -344,6 +344,9 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   };
 
   const int maxBatches = int(std::min<int64_t>(settings.batches, settings.samplesPerProbe));
+  const int batchesPerCall = int(std::clamp<int64_t>(
+      ProbeIntegrator::kSamplesPerCall / (settings.samplesPerProbe / maxBatches), 1,
+      ProbeIntegrator::kSamplesPerCall));
   const bool adaptive = settings.targetRelError > 0;
   // Whether a sample can ever be non-zero: light to find, or delta light that a surface or a
   // medium scatters into the samples.
@@ -386,13 +389,21 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
             const int roundEnd =
                 !adaptive ? maxBatches
                           : std::min(maxBatches, next == 0 ? kMinAdaptiveBatches : next + 2);
-            tbb::parallel_for(next, roundEnd, [&](int b) {
-              const int64_t n = BatchSize(settings.samplesPerProbe, maxBatches, b);
-              if (!integrator.TraceBatch(p, site.key, uint32_t(b), n, estimate.BatchSum(b),
-                                         &counters, cancel)) {
+            // Consecutive batches in groups of about ProbeIntegrator::kSamplesPerCall samples,
+            // so that the rays from the probe of small batches share packets (same sums).
+            const int groups = (roundEnd - next + batchesPerCall - 1) / batchesPerCall;
+            tbb::parallel_for(0, groups, [&](int g) {
+              const int first = next + g * batchesPerCall;
+              const int end = std::min(roundEnd, first + batchesPerCall);
+              ProbeIntegrator::BatchWork work[ProbeIntegrator::kSamplesPerCall];
+              for (int b = first; b < end; ++b)
+                work[b - first] = {BatchSize(settings.samplesPerProbe, maxBatches, b),
+                                   estimate.BatchSum(b)};
+              if (!integrator.TraceBatches(p, site.key, uint32_t(first),
+                                           {work, size_t(end - first)}, &counters, cancel)) {
                 cancelled.store(true, std::memory_order_relaxed);
               }
-              estimate.SetBatchSamples(b, n);
+              for (int b = first; b < end; ++b) estimate.SetBatchSamples(b, work[b - first].count);
             });
             if (isCancelled()) return;
             next = roundEnd;

@@ -143,26 +143,40 @@ Vec3d ProbeIntegrator::ShadowTransmittance(const Vec3f& origin, const LightSampl
 bool ProbeIntegrator::TraceBatch(const Vec3d& p, uint64_t probeKey, uint32_t batch, int64_t count,
                                  std::span<double> sum, SharedCounters* shared,
                                  const std::atomic<bool>* cancel) const {
+  const BatchWork work{count, sum};
+  return TraceBatches(p, probeKey, batch, {&work, 1}, shared, cancel);
+}
+
+bool ProbeIntegrator::TraceBatches(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
+                                   std::span<const BatchWork> work, SharedCounters* shared,
+                                   const std::atomic<bool>* cancel) const {
   const bool sobol = settings_.sampler == SamplerKind::kSobol;
   if (medium_) {
     return sobol
-               ? TraceBatchWith<true, SobolSampler>(p, probeKey, batch, count, sum, shared, cancel)
-               : TraceBatchWith<true, IndependentSampler>(p, probeKey, batch, count, sum, shared,
-                                                          cancel);
+               ? TraceBatchesWith<true, SobolSampler>(p, probeKey, firstBatch, work, shared, cancel)
+               : TraceBatchesWith<true, IndependentSampler>(p, probeKey, firstBatch, work, shared,
+                                                            cancel);
   }
-  return sobol ? TraceBatchWith<false, SobolSampler>(p, probeKey, batch, count, sum, shared, cancel)
-               : TraceBatchWith<false, IndependentSampler>(p, probeKey, batch, count, sum, shared,
+  return sobol
+             ? TraceBatchesWith<false, SobolSampler>(p, probeKey, firstBatch, work, shared, cancel)
+             : TraceBatchesWith<false, IndependentSampler>(p, probeKey, firstBatch, work, shared,
                                                            cancel);
 }
 
 template <bool kMedium, typename S>
-bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t batch,
-                                     int64_t count, std::span<double> sum, SharedCounters* shared,
-                                     const std::atomic<bool>* cancel) const {
+bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
+                                       std::span<const BatchWork> work, SharedCounters* shared,
+                                       const std::atomic<bool>* cancel) const {
   TraceCounters local;
   const int order = settings_.shOrder;
   const Vec3f origin(p);
-  S sampler(settings_.seed, Hash(probeKey, uint64_t(batch)));
+  std::vector<S> samplers;
+  samplers.reserve(work.size());
+  int64_t count = 0;  // samples of all the batches, traced as one run
+  for (size_t k = 0; k < work.size(); ++k) {
+    samplers.emplace_back(settings_.seed, Hash(probeKey, uint64_t(firstBatch + k)));
+    count += work[k].count;
+  }
   std::vector<double> importanceProbe(lights_.ImportanceSize()), scratchA(lights_.ImportanceSize()),
       scratchB(lights_.ImportanceSize());
   const double totalProbe = lights_.Importance(p, nullptr, /*includeDelta=*/false, importanceProbe);
@@ -175,20 +189,22 @@ bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t
     probeRays = std::make_unique<ProbeRays>();
 
   const int64_t chunk = probeRays ? kChunk : count;
+  SampleCursor cursor(work);
   for (int64_t c = 0; c < count; c += chunk) {
     const int n = int(std::min<int64_t>(chunk, count - c));
     if (probeRays) {
-      TraceProbeRays(origin, p, importanceProbe, totalProbe, c, n, sampler, probeRays.get(),
-                     &local);
+      TraceProbeRays(origin, p, importanceProbe, totalProbe, std::span<S>(samplers), cursor, n,
+                     probeRays.get(), &local);
     }
-    for (int j = 0; j < n; ++j) {
-      const int64_t i = c + j;
-      if ((i & 255) == 0) {
+    for (int j = 0; j < n; ++j, cursor.Next()) {
+      if (((c + j) & 255) == 0) {
         if (shared) shared->Add(local);
         local = {};
         if (cancel && cancel->load(std::memory_order_relaxed)) return false;
       }
-      sampler.StartSample(uint64_t(i));
+      S& sampler = samplers[cursor.batch];
+      const std::span<double> sum = work[cursor.batch].sum;
+      sampler.StartSample(uint64_t(cursor.index));
       const Vec2d uDirection = sampler.Get2D();
       const double uSelect = sampler.Get1D();
       const Vec2d uLight = sampler.Get2D();
@@ -240,8 +256,8 @@ bool ProbeIntegrator::TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t
 template <typename S>
 void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
                                      std::span<const double> importance, double total,
-                                     int64_t first, int n, S& sampler, ProbeRays* out,
-                                     TraceCounters* counters) const {
+                                     std::span<S> samplers, SampleCursor cursor, int n,
+                                     ProbeRays* out, TraceCounters* counters) const {
   // Packets want rays that are neighbours on the sphere; Sobol points in index order are spread
   // over the whole sphere on purpose. So the rays are put in packets in the order of a counting
   // sort by cell: the probe directions by their cell of 2^kCellBits x 2^kCellBits in the (z, phi)
@@ -261,8 +277,9 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
   const auto cellIndex = [](double x) {  // x in [0, 1]
     return std::min(uint32_t(x * (1 << kCellBits)), (1u << kCellBits) - 1);
   };
-  for (int j = 0; j < n; ++j) {
-    sampler.StartSample(uint64_t(first + j));
+  for (int j = 0; j < n; ++j, cursor.Next()) {
+    S& sampler = samplers[cursor.batch];
+    sampler.StartSample(uint64_t(cursor.index));
     const Vec2d uDirection = sampler.Get2D();
     out->wi[j] = SampleUniformSphere(uDirection);
     hitCell[j] = uint16_t(MortonInterleave(cellIndex(uDirection.x), cellIndex(uDirection.y)));

@@ -27,7 +27,7 @@
 // (2D), roulette (1D). Without a medium a vertex's numbers are drawn before the ray that finds it
 // is traced (LightSet::Prefetch), and left unused when there is no vertex: the order is the same.
 //
-// Without a medium, a batch of at least kMinPacketSamples samples traces its rays from the probe
+// Without a medium, a call of at least kMinPacketSamples samples traces its rays from the probe
 // (each path's first ray, each probe light sample's shadow ray) ahead of the paths, kChunk samples
 // at a time, as Embree packets of rays sorted by direction: rays that share an origin and nearly a
 // direction share most of their BVH traversal. Only the grouping of rays into packets changes;
@@ -80,18 +80,48 @@ class ProbeIntegrator {
                   std::span<double> sum, SharedCounters* shared,
                   const std::atomic<bool>* cancel) const;
 
+  // One batch of TraceBatches: its sample count and the sum its samples add to.
+  struct BatchWork {
+    int64_t count = 0;
+    std::span<double> sum;
+  };
+  // TraceBatch for batches firstBatch + k, k < work.size(), with work[k]'s count and sum: the
+  // same sums as one TraceBatch call each. Traced together, small batches' rays from the probe
+  // share packets: batches of kSamplesPerCall samples together make the most of them.
+  static constexpr int kSamplesPerCall = 256;
+  bool TraceBatches(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
+                    std::span<const BatchWork> work, SharedCounters* shared,
+                    const std::atomic<bool>* cancel) const;
+
   // Fraction of the sampled light's radiance that reaches `origin`: 0 when occluded, else the
   // medium's transmittance (1 without a medium).
   Vec3d ShadowTransmittance(const Vec3f& origin, const LightSample& s,
                             TraceCounters* counters) const;
 
  private:
-  // Rays from the probe are traced as packets of samples [c, c + kChunk) at a time (when a batch
-  // has at least kMinPacketSamples; fewer are too spread over the sphere to pay for the sort).
+  // Rays from the probe are traced as packets kChunk samples at a time (when a call has at least
+  // kMinPacketSamples; fewer are too spread over the sphere to pay for the sort).
   static constexpr int kCellBits = 4;
-  static constexpr int kChunk = 1 << (2 * kCellBits);
+  static constexpr int kChunk = kSamplesPerCall;
+  static_assert(kChunk == 1 << (2 * kCellBits), "one direction cell per sample");
   static constexpr int kMinPacketSamples = 128;
   static constexpr uint16_t kNoShadowRay = 0xFFFF;
+
+  // A position in the samples of several batches run one after the other: sample `index` of
+  // work[batch] (empty batches are skipped).
+  struct SampleCursor {
+    explicit SampleCursor(std::span<const BatchWork> w) : work(w) { Skip(); }
+    void Next() {
+      ++index;
+      Skip();
+    }
+    void Skip() {
+      while (batch < work.size() && index >= work[batch].count) ++batch, index = 0;
+    }
+    std::span<const BatchWork> work;
+    size_t batch = 0;
+    int64_t index = 0;
+  };
   // A chunk's rays from the probe: each sample's first path ray and its light sample's shadow
   // ray, traced ahead of the paths (kMedium false only). "By sample": index j of sample c + j;
   // "by slot": the ray's place in the packets.
@@ -111,16 +141,17 @@ class ProbeIntegrator {
   };
 
   template <bool kMedium, typename S>
-  bool TraceBatchWith(const Vec3d& p, uint64_t probeKey, uint32_t batch, int64_t count,
-                      std::span<double> sum, SharedCounters* shared,
-                      const std::atomic<bool>* cancel) const;
-  // Fills `out` for samples [first, first + n) of `sampler`'s stream, n <= kChunk, at the probe
-  // at p (float origin `origin`, light importance `importance` summing to `total`): draws their
-  // first random dimensions, samples the lights as TraceBatchWith would, and traces the rays.
+  bool TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
+                        std::span<const BatchWork> work, SharedCounters* shared,
+                        const std::atomic<bool>* cancel) const;
+  // Fills `out` for the n <= kChunk samples from `cursor` on (samplers[k]: batch k's stream) at
+  // the probe at p (float origin `origin`, light importance `importance` summing to `total`):
+  // draws their first random dimensions, samples the lights as TraceBatchesWith would, and
+  // traces the rays.
   template <typename S>
   void TraceProbeRays(const Vec3f& origin, const Vec3d& p, std::span<const double> importance,
-                      double total, int64_t first, int n, S& sampler, ProbeRays* out,
-                      TraceCounters* counters) const;
+                      double total, std::span<S> samplers, SampleCursor cursor, int n,
+                      ProbeRays* out, TraceCounters* counters) const;
   // The radiance arriving at p from direction wi, by the path traced from `origin` (p's float
   // ray origin). firstSegment: the hit of the path's first ray, traced already, or nullptr to
   // trace it here.
