@@ -13,7 +13,7 @@ namespace {
 
 // The header's stated bound: 4 * 2^-53 absolute. Derivation: the reduction is exact; x = 2 pi r
 // carries one rounding (relative 2^-53), which moves sin and cos by at most |x| 2^-53 <= 0.8 *
-// 2^-53; Horner's rule on S and C, both well conditioned, and the final additions contribute at
+// 2^-53; Estrin's scheme on S and C, both well conditioned, and the final additions contribute at
 // most ~1.5 * 2^-53 more; the truncated series terms are below 1e-19.
 constexpr double kBound = 4 * 0x1p-53;
 
