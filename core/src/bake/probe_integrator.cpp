@@ -184,9 +184,14 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
   const bool probeLightSample = lightSampling_ && totalProbe > 0;
   // Without a medium, the rays from the probe itself are traced a chunk of samples at a time, as
   // packets, before the rest of the chunk's paths.
-  std::unique_ptr<ProbeRays> probeRays;
-  if (!kMedium && probePackets_ && count >= kMinPacketSamples)
-    probeRays = std::make_unique<ProbeRays>();
+  // One buffer per thread, kept: zeroing its ~55 KB anew for every call took 0.5% of a bake's
+  // CPU samples (perf, memset).
+  ProbeRays* probeRays = nullptr;
+  if (!kMedium && probePackets_ && count >= kMinPacketSamples) {
+    thread_local std::unique_ptr<ProbeRays> buffer;
+    if (!buffer) buffer = std::make_unique<ProbeRays>();
+    probeRays = buffer.get();
+  }
 
   const int64_t chunk = probeRays ? kChunk : count;
   SampleCursor cursor(work);
@@ -194,7 +199,7 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
     const int n = int(std::min<int64_t>(chunk, count - c));
     if (probeRays) {
       TraceProbeRays(origin, p, importanceProbe, totalProbe, std::span<S>(samplers), cursor, n,
-                     probeRays.get(), &local);
+                     probeRays, &local);
     }
     for (int j = 0; j < n; ++j, cursor.Next()) {
       if (((c + j) & 255) == 0) {
