@@ -88,6 +88,22 @@ void InitRay(RTCRay& ray, const Vec3f& origin, const Vec3d& dir, double tMax) {
   ray.flags = 0;
 }
 
+// Lane k of an 8-ray packet set to `one`.
+void SetLane(RTCRay8& packet, int k, const RTCRay& one) {
+  packet.org_x[k] = one.org_x;
+  packet.org_y[k] = one.org_y;
+  packet.org_z[k] = one.org_z;
+  packet.tnear[k] = one.tnear;
+  packet.dir_x[k] = one.dir_x;
+  packet.dir_y[k] = one.dir_y;
+  packet.dir_z[k] = one.dir_z;
+  packet.time[k] = one.time;
+  packet.tfar[k] = one.tfar;
+  packet.mask[k] = one.mask;
+  packet.id[k] = one.id;
+  packet.flags[k] = one.flags;
+}
+
 }  // namespace
 
 struct TracerScene::Impl {
@@ -288,19 +304,9 @@ void TracerScene::IntersectPacket(const Vec3f& origin, std::span<const Vec3d> di
   for (int k = 0; k < kPacketWidth; ++k) {
     const bool active = size_t(k) < dirs.size();
     valid[k] = active ? -1 : 0;
-    const Vec3d& dir = dirs[active ? k : 0];
-    rh.ray.org_x[k] = origin.x;
-    rh.ray.org_y[k] = origin.y;
-    rh.ray.org_z[k] = origin.z;
-    rh.ray.tnear[k] = 0;
-    rh.ray.dir_x[k] = float(dir.x);
-    rh.ray.dir_y[k] = float(dir.y);
-    rh.ray.dir_z[k] = float(dir.z);
-    rh.ray.time[k] = 0;
-    rh.ray.tfar[k] = std::numeric_limits<float>::infinity();
-    rh.ray.mask[k] = 0xFFFFFFFFu;
-    rh.ray.id[k] = 0;
-    rh.ray.flags[k] = 0;
+    RTCRay one;
+    InitRay(one, origin, dirs[active ? k : 0], std::numeric_limits<double>::infinity());
+    SetLane(rh.ray, k, one);
     rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
     rh.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
@@ -328,18 +334,7 @@ void TracerScene::OccludedPacket(const Vec3f& origin, std::span<const Vec3d> dir
     valid[k] = active ? -1 : 0;
     RTCRay one;
     InitRay(one, origin, dirs[active ? k : 0], active ? tMax[k] : 0);
-    ray.org_x[k] = one.org_x;
-    ray.org_y[k] = one.org_y;
-    ray.org_z[k] = one.org_z;
-    ray.tnear[k] = one.tnear;
-    ray.dir_x[k] = one.dir_x;
-    ray.dir_y[k] = one.dir_y;
-    ray.dir_z[k] = one.dir_z;
-    ray.time[k] = one.time;
-    ray.tfar[k] = one.tfar;
-    ray.mask[k] = one.mask;
-    ray.id[k] = one.id;
-    ray.flags[k] = one.flags;
+    SetLane(ray, k, one);
   }
   rtcOccluded8(valid, impl_->scene, &context, &ray);
   for (size_t k = 0; k < dirs.size(); ++k) occluded[k] = ray.tfar[k] < 0;
