@@ -2,6 +2,8 @@
 //   build/bin/probebake_sampling_bench
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+#include <cmath>
 #include <vector>
 
 #include "probebake/sampling/distribution.h"
@@ -127,14 +129,21 @@ void BM_DiscreteBuild(benchmark::State& state) {
 }
 BENCHMARK(BM_DiscreteBuild)->Arg(1000000);
 
-// An environment map of 1024 x 512 texels.
+// An environment map of range(0) x range(1) texels (cols x rows): texels log-uniform over six
+// decades, or (range(2) = 1) a smooth sky, bright toward one horizon, weighted by its rows'
+// solid angle like the demo room's 128 x 64 sky.
 void BM_PiecewiseConstant2DSample(benchmark::State& state) {
-  constexpr int rows = 512, cols = 1024;
-  std::vector<double> w(rows * cols);
+  const int cols = int(state.range(0)), rows = int(state.range(1));
+  const bool sky = state.range(2) == 1;
+  std::vector<double> w(size_t(rows) * cols);
   IndependentSampler s(5, 5);
   for (int i = 0; i < rows * cols; ++i) {
     s.StartSample(i);
-    w[i] = std::pow(10.0, -3 + 6 * s.Get1D());
+    const double lat = 3.14159265358979 * ((i / cols + 0.5) / rows - 0.5);
+    const double lon = 6.28318530717959 * ((i % cols + 0.5) / cols);
+    w[i] = sky ? std::cos(lat) * (0.2 + std::exp(4 * std::cos(lon) * std::cos(lat) - 4) +
+                                  0.5 * std::max(0.0, std::sin(lat)))
+               : std::pow(10.0, -3 + 6 * s.Get1D());
   }
   const PiecewiseConstant2D d(w, rows, cols);
   uint64_t k = 0;
@@ -144,7 +153,7 @@ void BM_PiecewiseConstant2DSample(benchmark::State& state) {
   }
   state.SetItemsProcessed(state.iterations());
 }
-BENCHMARK(BM_PiecewiseConstant2DSample);
+BENCHMARK(BM_PiecewiseConstant2DSample)->Args({1024, 512, 0})->Args({128, 64, 1});
 
 }  // namespace
 }  // namespace probebake

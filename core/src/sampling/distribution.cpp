@@ -65,13 +65,24 @@ DiscreteDistribution::DiscreteDistribution(std::span<const double> weights) {
   guide_[n] = static_cast<uint32_t>(n - 1);
 }
 
+// Guide ranges up to this long are counted, longer ones binary-searched.
+constexpr int64_t kLinearSearchMax = 8;
+
 DiscreteSample DiscreteDistribution::Sample(double u) const {
   PB_DCHECK(u >= 0 && u < 1);
   const int64_t b = Bucket(u);
-  // Smallest i in [guide_[b], guide_[b+1]] with cdf_[i + 1] > u; then cdf_[i] <= u.
-  const double* first = cdf_.data() + guide_[b] + 1;
-  const double* last = cdf_.data() + guide_[b + 1] + 2;
-  const int64_t i = (std::upper_bound(first, last, u) - cdf_.data()) - 1;
+  // Smallest i in [guide_[b], guide_[b+1]] with cdf_[i + 1] > u; then cdf_[i] <= u. The CDF
+  // is monotone, so i - guide_[b] counts the entries of the range at or below u: counted without
+  // branches over short ranges, where a binary search's few branches mispredict half the time,
+  // searched over long ones.
+  const int64_t lo = guide_[b], hi = guide_[b + 1];
+  int64_t i;
+  if (hi - lo <= kLinearSearchMax) {
+    i = lo;
+    for (int64_t k = lo + 1; k <= hi; ++k) i += cdf_[k] <= u;
+  } else {
+    i = (std::upper_bound(cdf_.data() + lo + 1, cdf_.data() + hi + 2, u) - cdf_.data()) - 1;
+  }
   PB_DCHECK(i >= 0 && i < Size() && cdf_[i] <= u && u < cdf_[i + 1]);
   const double pmf = cdf_[i + 1] - cdf_[i];
   return {i, pmf, std::min((u - cdf_[i]) / pmf, kOneMinusEpsilon)};
