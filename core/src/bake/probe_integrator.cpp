@@ -44,8 +44,8 @@ double PowerHeuristic(double pdfA, double pdfB) {
   return 1 / (1 + r * r);
 }
 
-// The 3-bit x and y interleaved, x in the even places: the cell's index along a Morton (Z-order)
-// curve over 8 x 8 cells.
+// The 16-bit x and y interleaved, x in the even places: the cell's index along a Morton (Z-order)
+// curve.
 uint32_t MortonInterleave(uint32_t x, uint32_t y) {
   const auto spread = [](uint32_t v) {
     v = (v | (v << 8)) & 0x00FF00FFu;
@@ -196,12 +196,13 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
   const int64_t chunk = probeRays ? kChunk : count;
   SampleCursor cursor(work);
   for (int64_t c = 0; c < count; c += chunk) {
-    const int n = int(std::min<int64_t>(chunk, count - c));
+    // int64_t: without packets the chunk is the whole call, up to 2^32 samples.
+    const int64_t n = std::min<int64_t>(chunk, count - c);
     if (probeRays) {
-      TraceProbeRays(origin, p, importanceProbe, totalProbe, std::span<S>(samplers), cursor, n,
+      TraceProbeRays(origin, p, importanceProbe, totalProbe, std::span<S>(samplers), cursor, int(n),
                      probeRays, &local);
     }
-    for (int j = 0; j < n; ++j, cursor.Next()) {
+    for (int64_t j = 0; j < n; ++j, cursor.Next()) {
       if (((c + j) & 255) == 0) {
         if (shared) shared->Add(local);
         local = {};
@@ -311,8 +312,9 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
       ox = fx;
     }
     constexpr int kHalf = kCellBits - 1;
+    constexpr uint32_t kLightGroups = 4;  // 4 x 2^(2 kHalf) = kChunk buckets
     const uint32_t cx = cellIndex(0.5 * (ox + 1)) >> 1, cy = cellIndex(0.5 * (oy + 1)) >> 1;
-    shadowCell[j] = uint16_t(((ls.light % 4) << (2 * kHalf)) | MortonInterleave(cx, cy));
+    shadowCell[j] = uint16_t(((ls.light % kLightGroups) << (2 * kHalf)) | MortonInterleave(cx, cy));
     ++shadowStart[shadowCell[j] + 1];
   }
 
