@@ -57,7 +57,9 @@ BatchResult Trace(const ProbeIntegrator& integrator, const TracerScene& tracer, 
 }
 
 // Every estimator and sampler, batches of one chunk, a chunk and a part, several chunks, and
-// probes in the open, under the roof and beside the box: packets and single rays agree. A
+// probes in the open, under the roof and beside the box, and paths that end at the probe's hit
+// (maxDepth 0), after the first vertex (maxDepth 1) or by roulette from the first vertex on:
+// packets (at the probe and at the first vertices) and single rays agree. A
 // permutation mix-up between samples, a lost shadow ray or a skipped random dimension changes
 // at least one sample's contribution, at least ~1/count of the largest coefficient here
 // (thousands of times the tolerance). The tolerance allows the hits of Embree's packet kernel to
@@ -73,28 +75,39 @@ TEST(ProbeIntegrator, PacketsAtTheProbeChangeNoResult) {
   const SamplerKind samplers[] = {SamplerKind::kSobol, SamplerKind::kIndependent};
   const Vec3d probes[] = {{-2, 2, 1.5}, {2.5, -2, 2}, {1, 0.5, 0.6}};
   const int64_t counts[] = {128, 256, 300, 1000};
+  struct Depth {
+    int maxDepth, rrMinDepth;
+  };
+  const Depth depths[] = {
+      {BakeSettings{}.maxDepth, BakeSettings{}.rrMinDepth}, {0, 1}, {1, 1}, {8, 1}};
   for (Estimator estimator : estimators) {
     for (SamplerKind sampler : samplers) {
-      BakeSettings settings;
-      settings.estimator = estimator;
-      settings.sampler = sampler;
-      const ProbeIntegrator packets(scene, **tracer, lights, settings, /*probePackets=*/true);
-      const ProbeIntegrator single(scene, **tracer, lights, settings, /*probePackets=*/false);
-      for (const Vec3d& p : probes) {
-        for (int64_t count : counts) {
-          SCOPED_TRACE(::testing::Message() << "estimator " << int(estimator) << ", sampler "
-                                            << int(sampler) << ", probe " << p.x << " " << p.y
-                                            << " " << p.z << ", " << count << " samples");
-          const BatchResult a = Trace(packets, **tracer, p, count, settings);
-          const BatchResult b = Trace(single, **tracer, p, count, settings);
-          EXPECT_EQ(a.samples, count);
-          EXPECT_EQ(a.samples, b.samples);
-          EXPECT_EQ(a.rays, b.rays);
-          double scale = 0;
-          for (double v : b.sum) scale = std::max(scale, std::fabs(v));
-          ASSERT_GT(scale, 0);
-          for (size_t i = 0; i < a.sum.size(); ++i)
-            EXPECT_NEAR(a.sum[i], b.sum[i], 1e-5 * scale) << "coefficient " << i / 3;
+      for (const Depth& depth : depths) {
+        BakeSettings settings;
+        settings.estimator = estimator;
+        settings.sampler = sampler;
+        settings.maxDepth = depth.maxDepth;
+        settings.rrMinDepth = depth.rrMinDepth;
+        const ProbeIntegrator packets(scene, **tracer, lights, settings, /*probePackets=*/true);
+        const ProbeIntegrator single(scene, **tracer, lights, settings, /*probePackets=*/false);
+        for (const Vec3d& p : probes) {
+          for (int64_t count : counts) {
+            SCOPED_TRACE(::testing::Message()
+                         << "estimator " << int(estimator) << ", sampler " << int(sampler)
+                         << ", maxDepth " << depth.maxDepth << ", rrMinDepth " << depth.rrMinDepth
+                         << ", probe " << p.x << " " << p.y << " " << p.z << ", " << count
+                         << " samples");
+            const BatchResult a = Trace(packets, **tracer, p, count, settings);
+            const BatchResult b = Trace(single, **tracer, p, count, settings);
+            EXPECT_EQ(a.samples, count);
+            EXPECT_EQ(a.samples, b.samples);
+            EXPECT_EQ(a.rays, b.rays);
+            double scale = 0;
+            for (double v : b.sum) scale = std::max(scale, std::fabs(v));
+            ASSERT_GT(scale, 0);
+            for (size_t i = 0; i < a.sum.size(); ++i)
+              EXPECT_NEAR(a.sum[i], b.sum[i], 1e-5 * scale) << "coefficient " << i / 3;
+          }
         }
       }
     }

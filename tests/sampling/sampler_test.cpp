@@ -114,6 +114,36 @@ void ExpectDeterministic() {
   EXPECT_NE(Sequence(S(3, 11), 0, 8), Sequence(S(3, 12), 0, 8));
 }
 
+// StartSample(i, d) gives the values that StartSample(i) and d draws would have led to, for every
+// d up to past the Sobol sampler's cached seeds (chunks then start at any set and straddle the
+// cache's end), whatever was drawn before.
+template <typename S>
+void ExpectStartAtASet() {
+  constexpr int kSets = 70;
+  for (uint64_t index : {0u, 1u, 37u, 1000u}) {
+    S all(9, 4);
+    all.StartSample(index);
+    std::vector<Vec2d> expected;
+    for (int d = 0; d < kSets; ++d) expected.push_back(d % 3 ? all.Get2D() : Vec2d{all.Get1D(), 0});
+    S s(9, 4);
+    for (int d = 0; d < kSets; ++d) {
+      s.StartSample(index + 1);
+      s.Get2D();
+      s.StartSample(index, uint64_t(d));
+      for (int e = d; e < std::min(kSets, d + 11); ++e) {
+        const Vec2d v = e % 3 ? s.Get2D() : Vec2d{s.Get1D(), 0};
+        ASSERT_EQ(v, expected[e]) << "index " << index << ", start " << d << ", set " << e;
+      }
+    }
+  }
+}
+TEST(Sampler, SobolStartsAtASet) {
+  ExpectStartAtASet<SobolSampler>();
+}
+TEST(Sampler, IndependentStartsAtASet) {
+  ExpectStartAtASet<IndependentSampler>();
+}
+
 TEST(Sampler, SobolIsDeterministic) {
   ExpectDeterministic<SobolSampler>();
 }

@@ -57,16 +57,10 @@ uint32_t MortonInterleave(uint32_t x, uint32_t y) {
   return spread(x) | (spread(y) << 1);
 }
 
-// The random numbers of one scattering vertex, in the order they are drawn.
-struct VertexNumbers {
-  double select = 0;  // light choice
-  Vec2d light;        // light point
-  Vec2d next;         // continuation direction
-  double roulette = 0;
-};
+}  // namespace
 
 template <typename S>
-VertexNumbers DrawVertexNumbers(S& sampler) {
+ProbeIntegrator::VertexNumbers ProbeIntegrator::DrawVertexNumbers(S& sampler) {
   VertexNumbers v;
   v.select = sampler.Get1D();
   v.light = sampler.Get2D();
@@ -74,8 +68,6 @@ VertexNumbers DrawVertexNumbers(S& sampler) {
   v.roulette = sampler.Get1D();
   return v;
 }
-
-}  // namespace
 
 ProbeIntegrator::ProbeIntegrator(const Scene& scene, const TracerScene& tracer,
                                  const LightSet& lights, const BakeSettings& settings,
@@ -182,15 +174,16 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
   const double totalProbe = lights_.Importance(p, nullptr, /*includeDelta=*/false, importanceProbe);
   const double pdfProbe = UniformSpherePdf();
   const bool probeLightSample = lightSampling_ && totalProbe > 0;
-  // Without a medium, the rays from the probe itself are traced a chunk of samples at a time, as
-  // packets, before the rest of the chunk's paths.
-  // One buffer per thread, kept: zeroing its ~55 KB anew for every call took 0.5% of a bake's
-  // CPU samples (perf, memset).
+  // Without a medium, the rays from the probe and from the paths' first vertices are traced a
+  // chunk of samples at a time, as packets, before the rest of the chunk's paths.
+  // One buffer per thread, kept: zeroing it (then 55 KB, now over 100 KB) anew for every call
+  // took 0.5% of a bake's CPU samples (perf, memset).
   ProbeRays* probeRays = nullptr;
   if (!kMedium && probePackets_ && count >= kMinPacketSamples) {
     thread_local std::unique_ptr<ProbeRays> buffer;
     if (!buffer) buffer = std::make_unique<ProbeRays>();
     probeRays = buffer.get();
+    probeRays->importance.resize(kChunk * lights_.ImportanceSize());
   }
 
   const int64_t chunk = probeRays ? kChunk : count;
@@ -201,6 +194,7 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
     if (probeRays) {
       TraceProbeRays(origin, p, importanceProbe, totalProbe, std::span<S>(samplers), cursor, int(n),
                      probeRays, &local);
+      TraceFirstVertices(p, importanceProbe, totalProbe, pdfProbe, int(n), probeRays, &local);
     }
     for (int64_t j = 0; j < n; ++j, cursor.Next()) {
       if (((c + j) & 255) == 0) {
@@ -210,36 +204,56 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
       }
       S& sampler = samplers[cursor.batch];
       const std::span<double> sum = work[cursor.batch].sum;
-      sampler.StartSample(uint64_t(cursor.index));
-      const Vec2d uDirection = sampler.Get2D();
-      const double uSelect = sampler.Get1D();
-      const Vec2d uLight = sampler.Get2D();
-      // The path first, the light sample after it: the path's work hides the memory latency of
-      // the light sample's tables (a large environment map), loaded from here on. The
-      // projections are still added light sample first, so the sum's bits do not change.
-      if (probeLightSample && !probeRays) lights_.Prefetch(uLight);
-
-      FirstSegment first;
-      Vec3d wi;
+      Vec3d wi, radiance;
+      Vec2d uLight;
+      double uSelect = 0;
       if (probeRays) {
-        // TraceProbeRays found this direction from the same numbers.
+        // TraceProbeRays found this direction from the same numbers, and TraceFirstVertices
+        // shaded the path's first vertex.
         wi = probeRays->wi[j];
-        first.found = probeRays->found[probeRays->hitSlot[j]];
-        first.hit = &probeRays->hit[probeRays->hitSlot[j]];
+        const FirstVertex& f = probeRays->first[j];
+        radiance = f.radiance;
+        if (f.shadowSlot == kVisible ||
+            (f.shadowSlot != kNoRay && !probeRays->firstOccluded[f.shadowSlot])) {
+          const Vec3d tr{1, 1, 1};  // as TracePath adds it
+          radiance += f.neeBase * tr * f.neeScale;
+        }
+        if (f.nextSlot != kNoRay) {
+          sampler.StartSample(uint64_t(cursor.index), kProbeSets + kVertexSets);
+          const PathStart start{f.spawn, f.p, &f.n, f.wi, f.pdfDir, radiance, f.beta, 2};
+          const FirstSegment next{probeRays->nextFound[f.nextSlot],
+                                  &probeRays->nextHit[f.nextSlot]};
+          const size_t size = importanceProbe.size();
+          radiance = TracePath<kMedium>(
+              start, &next, std::span<double>(probeRays->importance.data() + j * size, size),
+              f.total, scratchB, sampler, &local);
+        }
       } else {
+        sampler.StartSample(uint64_t(cursor.index));
+        const Vec2d uDirection = sampler.Get2D();
+        uSelect = sampler.Get1D();
+        uLight = sampler.Get2D();
+        // The path first, the light sample after it: the path's work hides the memory latency
+        // of the light sample's tables (a large environment map), loaded from here on. The
+        // projections are still added light sample first, so the sum's bits do not change.
+        if (probeLightSample) lights_.Prefetch(uLight);
         wi = SampleUniformSphere(uDirection);
+        std::copy(importanceProbe.begin(), importanceProbe.end(), scratchA.begin());
+        PathStart start;
+        start.origin = origin;
+        start.pPrev = p;
+        start.wi = wi;
+        start.pdfDir = pdfProbe;
+        radiance =
+            TracePath<kMedium>(start, nullptr, scratchA, totalProbe, scratchB, sampler, &local);
       }
-      std::copy(importanceProbe.begin(), importanceProbe.end(), scratchA.begin());
-      const Vec3d radiance =
-          TracePath<kMedium>(origin, p, wi, pdfProbe, probeRays ? &first : nullptr, scratchA,
-                             totalProbe, scratchB, sampler, &local);
 
       if (probeLightSample) {
         LightSample ls;
         Vec3d tr;
         if (probeRays) {
           const uint16_t slot = probeRays->shadowSlot[j];
-          if (slot != kNoShadowRay) {
+          if (slot != kNoRay) {
             ls = probeRays->light[j];
             if (!probeRays->occluded[slot]) tr = {1, 1, 1};
           }
@@ -272,9 +286,9 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
   // by octahedral cell of their direction. The rays' order changes only which rays share a packet,
   // never a result.
   static_assert(kChunk == (1 << (2 * kCellBits)));
-  static_assert(kChunk < kNoShadowRay);
+  static_assert(kChunk < kNoRay);
   // shadowCell's values for samples without a shadow ray.
-  constexpr uint16_t kNoLightSample = 0xFFFF, kVisible = 0xFFFE;
+  constexpr uint16_t kNoLightSample = 0xFFFF, kVisibleCell = 0xFFFE;
   const bool lightSample = lightSampling_ && total > 0;
   uint16_t hitCell[kChunk], shadowCell[kChunk];
   int hitStart[kChunk + 1] = {}, shadowStart[kChunk + 1] = {};
@@ -287,19 +301,20 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
     S& sampler = samplers[cursor.batch];
     sampler.StartSample(uint64_t(cursor.index));
     const Vec2d uDirection = sampler.Get2D();
+    const double uSelect = sampler.Get1D();
+    const Vec2d uLight = sampler.Get2D();
+    out->vertex[j] = DrawVertexNumbers(sampler);
     out->wi[j] = SampleUniformSphere(uDirection);
     hitCell[j] = uint16_t(MortonInterleave(cellIndex(uDirection.x), cellIndex(uDirection.y)));
     ++hitStart[hitCell[j] + 1];
 
     shadowCell[j] = kNoLightSample;
     if (!lightSample) continue;
-    const double uSelect = sampler.Get1D();
-    const Vec2d uLight = sampler.Get2D();
     LightSample& ls = out->light[j];
     if (!lights_.Sample(p, nullptr, importance, total, uSelect, uLight, &ls)) continue;
     ++counters->rays;  // counted as Unoccluded counts it, traced or not
     if (!ShadowRay(origin, ls, &shadowDir[j], &shadowTMax[j])) {
-      shadowCell[j] = kVisible;
+      shadowCell[j] = kVisibleCell;
       continue;
     }
     // Octahedral map of the direction, then cells of 2^(kCellBits - 1) squared per light.
@@ -328,8 +343,8 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
   constexpr int kWidth = TracerScene::kPacketWidth;
   for (int k = 0; k < n; k += kWidth) {
     const int m = std::min(kWidth, n - k);
-    tracer_.IntersectPacket(origin, std::span<const Vec3d>(sortedDir + k, size_t(m)), out->hit + k,
-                            out->found + k);
+    tracer_.IntersectPacket({&origin, 1}, std::span<const Vec3d>(sortedDir + k, size_t(m)),
+                            out->hit + k, out->found + k);
   }
   counters->rays += n;
   if (!lightSample) return;
@@ -339,8 +354,8 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
   double sortedTMax[kChunk];
   for (int j = 0; j < n; ++j) {
     if (shadowCell[j] == kNoLightSample) {
-      out->shadowSlot[j] = kNoShadowRay;
-    } else if (shadowCell[j] == kVisible) {
+      out->shadowSlot[j] = kNoRay;
+    } else if (shadowCell[j] == kVisibleCell) {
       out->shadowSlot[j] = uint16_t(rays);  // past the traced rays: never occluded
     } else {
       const int k = shadowStart[shadowCell[j]]++;
@@ -351,23 +366,157 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
   }
   for (int k = 0; k < rays; k += kWidth) {
     const int m = std::min(kWidth, rays - k);
-    tracer_.OccludedPacket(origin, std::span<const Vec3d>(sortedDir + k, size_t(m)), sortedTMax + k,
-                           out->occluded + k);
+    tracer_.OccludedPacket({&origin, 1}, std::span<const Vec3d>(sortedDir + k, size_t(m)),
+                           sortedTMax + k, out->occluded + k);
   }
   out->occluded[rays] = false;
 }
 
+void ProbeIntegrator::TraceFirstVertices(const Vec3d& p, std::span<const double> importance,
+                                         double total, double pdfProbe, int n, ProbeRays* out,
+                                         TraceCounters* counters) const {
+  // In slot order: neighbouring slots hold neighbouring probe directions, whose hits are
+  // neighbours too, and so are the rays from them (to one light, or on to nearby surfaces).
+  uint16_t sampleOfSlot[kChunk];
+  for (int j = 0; j < n; ++j) sampleOfSlot[out->hitSlot[j]] = uint16_t(j);
+  const size_t size = lights_.ImportanceSize();
+  Vec3f shadowOrigin[kChunk], nextOrigin[kChunk];
+  Vec3d shadowDir[kChunk], nextDir[kChunk];
+  double shadowTMax[kChunk];
+  int shadowRays = 0, nextRays = 0;
+  for (int k = 0; k < n; ++k) {
+    const int j = sampleOfSlot[k];
+    FirstVertex& f = out->first[j];
+    f.radiance = {};
+    f.beta = {1, 1, 1};
+    f.shadowSlot = kNoRay;
+    f.nextSlot = kNoRay;
+    const SurfaceHit& hit = out->hit[k];
+    const Vec3d& wi = out->wi[j];
+    const Vec3d* albedo = Arrive(out->found[k], hit, 1, p, nullptr, importance, total, wi, pdfProbe,
+                                 f.beta, &f.radiance);
+    if (!albedo || MaxComponent(*albedo) <= 0) continue;
+    SurfaceVertex v;
+    ShadeSurface(hit, wi, *albedo, out->vertex[j], 1,
+                 std::span<double>(out->importance.data() + j * size, size), &f.beta, &v);
+    if (v.lightSampled) {
+      f.neeBase = v.neeBase;
+      f.neeScale = v.neeScale;
+      ++counters->rays;  // counted as Unoccluded counts it, traced or not
+      if (ShadowRay(v.spawn, v.ls, &shadowDir[shadowRays], &shadowTMax[shadowRays])) {
+        shadowOrigin[shadowRays] = v.spawn;
+        f.shadowSlot = uint16_t(shadowRays++);
+      } else {
+        f.shadowSlot = kVisible;
+      }
+    }
+    if (!v.continues) continue;
+    f.spawn = v.spawn;
+    f.p = hit.p;
+    f.n = v.n;
+    f.wi = v.wi;
+    f.pdfDir = v.pdfDir;
+    f.total = v.total;
+    nextOrigin[nextRays] = v.spawn;
+    nextDir[nextRays] = v.wi;
+    f.nextSlot = uint16_t(nextRays++);
+  }
+  constexpr int kWidth = TracerScene::kPacketWidth;
+  for (int k = 0; k < shadowRays; k += kWidth) {
+    const size_t m = size_t(std::min(kWidth, shadowRays - k));
+    tracer_.OccludedPacket(std::span<const Vec3f>(shadowOrigin + k, m),
+                           std::span<const Vec3d>(shadowDir + k, m), shadowTMax + k,
+                           out->firstOccluded + k);
+  }
+  for (int k = 0; k < nextRays; k += kWidth) {
+    const size_t m = size_t(std::min(kWidth, nextRays - k));
+    tracer_.IntersectPacket(std::span<const Vec3f>(nextOrigin + k, m),
+                            std::span<const Vec3d>(nextDir + k, m), out->nextHit + k,
+                            out->nextFound + k);
+  }
+  counters->rays += nextRays;
+}
+
+[[gnu::always_inline]] inline const Vec3d* ProbeIntegrator::Arrive(
+    bool found, const SurfaceHit& hit, int bounce, const Vec3d& pPrev, const Vec3d* nPrev,
+    std::span<const double> importancePrev, double totalPrev, const Vec3d& wi, double pdfDir,
+    const Vec3d& beta, Vec3d* radiance) const {
+  if (!found) {
+    if (countEmission_) {
+      lights_.ForEachEscaped(nPrev, importancePrev, totalPrev, wi, [&](const LightHit& h) {
+        const double w = mis_ ? PowerHeuristic(pdfDir, h.pdf) : 1.0;
+        *radiance += beta * h.radiance * w;
+      });
+    }
+    return nullptr;
+  }
+  if (countEmission_) {
+    LightHit h;
+    if (lights_.EvalSurfaceHit(pPrev, nPrev, importancePrev, totalPrev, wi, hit, &h)) {
+      const double w = mis_ ? PowerHeuristic(pdfDir, h.pdf) : 1.0;
+      *radiance += beta * h.radiance * w;
+    }
+  }
+  if (hit.kind != SurfaceKind::kMesh) return nullptr;  // area lights' surfaces absorb
+  if (bounce > settings_.maxDepth) return nullptr;
+  return &scene_.materials[scene_.meshes[hit.index].material].albedo;
+}
+
+[[gnu::always_inline]] inline void ProbeIntegrator::ShadeSurface(
+    const SurfaceHit& hit, const Vec3d& wi, const Vec3d& albedo, const VertexNumbers& u, int bounce,
+    std::span<double> importance, Vec3d* beta, SurfaceVertex* v) const {
+  // Shade on the side the ray arrived from; both sides of a mesh reflect.
+  v->n = Dot(wi, hit.ng) < 0 ? hit.ng : -hit.ng;
+  v->spawn = OffsetRayOrigin(hit.p, v->n, hit.vertexScale);
+  // Light importance here serves NEE and the MIS weight of the next hit; the pure
+  // direction-sampling estimator needs neither.
+  v->total = (lightSampling_ || mis_)
+                 ? lights_.Importance(hit.p, &v->n, /*includeDelta=*/true, importance)
+                 : 0.0;
+  v->lightSampled = false;
+  if (lightSampling_ && v->total > 0 &&
+      lights_.Sample(hit.p, &v->n, importance, v->total, u.select, u.light, &v->ls)) {
+    const double cosTheta = Dot(v->ls.wi, v->n);
+    if (cosTheta > 0) {
+      const double pdfBsdf = cosTheta * kInvPi;
+      const double w = (mis_ && !v->ls.delta) ? PowerHeuristic(v->ls.pdf, pdfBsdf) : 1.0;
+      v->lightSampled = true;
+      v->neeBase = *beta * albedo * v->ls.radiance;
+      v->neeScale = kInvPi * cosTheta * w / v->ls.pdf;
+    }
+  }
+
+  v->continues = false;
+  const Vec3d local = SampleCosineHemisphere(u.next);
+  v->pdfDir = CosineHemispherePdf(local.z);
+  if (!(v->pdfDir > 0)) return;
+  v->wi = Normalize(Framed::FromZ(v->n).FromLocal(local));
+  // f cos / pdf = (albedo / pi) cos / (cos / pi) = albedo.
+  *beta *= albedo;
+  if (settings_.russianRoulette && bounce >= settings_.rrMinDepth) {
+    const double survive = std::min(1.0, MaxComponent(*beta));
+    if (u.roulette >= survive) return;
+    *beta = *beta / survive;
+  }
+  v->continues = true;
+}
+
 template <bool kMedium, typename S>
-Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d wi, double pdfDir,
-                                 const FirstSegment* firstSegment, std::span<double> importancePrev,
-                                 double totalPrev, std::span<double> scratch, S& sampler,
+Vec3d ProbeIntegrator::TracePath(const PathStart& start, const FirstSegment* segment,
+                                 std::span<double> importancePrev, double totalPrev,
+                                 std::span<double> scratch, S& sampler,
                                  TraceCounters* counters) const {
-  Vec3d radiance, beta{1, 1, 1};
-  Vec3f origin = originIn;
-  Vec3d pPrev = pIn;
+  Vec3d radiance = start.radiance, beta = start.beta, wi = start.wi;
+  double pdfDir = start.pdfDir;
+  Vec3f origin = start.origin;
+  Vec3d pPrev = start.pPrev;
   Vec3d nPrevStorage;
   const Vec3d* nPrev = nullptr;  // the probe and medium vertices have no surface
-  for (int bounce = 1;; ++bounce) {
+  if (start.nPrev) {
+    nPrevStorage = *start.nPrev;
+    nPrev = &nPrevStorage;
+  }
+  for (int bounce = start.bounce;; ++bounce) {
     // Without a medium the vertex's random numbers are drawn before its ray is traced (a path
     // that ends there leaves them unused, and the next sample restarts the sampler), so that the
     // light sample's memory loads while Embree traces.
@@ -378,9 +527,9 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
     }
     SurfaceHit hit;
     bool found;
-    if (bounce == 1 && firstSegment) {
-      found = firstSegment->found;
-      if (found) hit = *firstSegment->hit;
+    if (bounce == start.bounce && segment) {
+      found = segment->found;
+      if (found) hit = *segment->hit;
     } else {
       ++counters->rays;
       found = tracer_.Intersect(origin, wi, kInf, &hit);
@@ -432,70 +581,27 @@ Vec3d ProbeIntegrator::TracePath(const Vec3f& originIn, const Vec3d& pIn, Vec3d 
       if (MaxComponent(beta) <= 0) break;
     }
 
-    if (!found) {
-      if (countEmission_) {
-        lights_.ForEachEscaped(nPrev, importancePrev, totalPrev, wi, [&](const LightHit& h) {
-          const double w = mis_ ? PowerHeuristic(pdfDir, h.pdf) : 1.0;
-          radiance += beta * h.radiance * w;
-        });
-      }
-      break;
-    }
-    if (countEmission_) {
-      LightHit h;
-      if (lights_.EvalSurfaceHit(pPrev, nPrev, importancePrev, totalPrev, wi, hit, &h)) {
-        const double w = mis_ ? PowerHeuristic(pdfDir, h.pdf) : 1.0;
-        radiance += beta * h.radiance * w;
-      }
-    }
-    if (hit.kind != SurfaceKind::kMesh) break;  // area lights' surfaces absorb
-    if (bounce > settings_.maxDepth) break;
-    const Vec3d& albedo = scene_.materials[scene_.meshes[hit.index].material].albedo;
-
+    const Vec3d* albedo = Arrive(found, hit, bounce, pPrev, nPrev, importancePrev, totalPrev, wi,
+                                 pdfDir, beta, &radiance);
+    if (!albedo) break;
     if constexpr (kMedium) u = DrawVertexNumbers(sampler);
-    if (MaxComponent(albedo) <= 0) break;
+    if (MaxComponent(*albedo) <= 0) break;
 
-    // Shade on the side the ray arrived from; both sides of a mesh reflect.
-    const Vec3d n = Dot(wi, hit.ng) < 0 ? hit.ng : -hit.ng;
-    const Vec3f spawn = OffsetRayOrigin(hit.p, n, hit.vertexScale);
-    // Light importance here serves NEE and the MIS weight of the next hit; the pure
-    // direction-sampling estimator needs neither.
-    const double total = (lightSampling_ || mis_)
-                             ? lights_.Importance(hit.p, &n, /*includeDelta=*/true, scratch)
-                             : 0.0;
-
-    if (lightSampling_ && total > 0) {
-      LightSample ls;
-      if (lights_.Sample(hit.p, &n, scratch, total, u.select, u.light, &ls)) {
-        const double cosTheta = Dot(ls.wi, n);
-        if (cosTheta > 0) {
-          const Vec3d tr = Shadow<kMedium>(spawn, ls, counters);
-          if (MaxComponent(tr) > 0) {
-            const double pdfBsdf = cosTheta * kInvPi;
-            const double w = (mis_ && !ls.delta) ? PowerHeuristic(ls.pdf, pdfBsdf) : 1.0;
-            radiance += beta * albedo * ls.radiance * tr * (kInvPi * cosTheta * w / ls.pdf);
-          }
-        }
-      }
+    SurfaceVertex v;
+    ShadeSurface(hit, wi, *albedo, u, bounce, scratch, &beta, &v);
+    if (v.lightSampled) {
+      const Vec3d tr = Shadow<kMedium>(v.spawn, v.ls, counters);
+      if (MaxComponent(tr) > 0) radiance += v.neeBase * tr * v.neeScale;
     }
-
-    const Vec3d local = SampleCosineHemisphere(u.next);
-    pdfDir = CosineHemispherePdf(local.z);
-    if (!(pdfDir > 0)) break;
-    wi = Normalize(Framed::FromZ(n).FromLocal(local));
-    // f cos / pdf = (albedo / pi) cos / (cos / pi) = albedo.
-    beta *= albedo;
-    if (settings_.russianRoulette && bounce >= settings_.rrMinDepth) {
-      const double survive = std::min(1.0, MaxComponent(beta));
-      if (u.roulette >= survive) break;
-      beta = beta / survive;
-    }
-    origin = spawn;
+    if (!v.continues) break;
+    wi = v.wi;
+    pdfDir = v.pdfDir;
+    origin = v.spawn;
     pPrev = hit.p;
-    nPrevStorage = n;
+    nPrevStorage = v.n;
     nPrev = &nPrevStorage;
     std::swap(importancePrev, scratch);
-    totalPrev = total;
+    totalPrev = v.total;
   }
   return radiance;
 }

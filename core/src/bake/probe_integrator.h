@@ -27,11 +27,14 @@
 // (2D), roulette (1D). Without a medium a vertex's numbers are drawn before the ray that finds it
 // is traced (LightSet::Prefetch), and left unused when there is no vertex: the order is the same.
 //
-// Without a medium, a call of at least kMinPacketSamples samples traces its rays from the probe
-// (each path's first ray, each probe light sample's shadow ray) ahead of the paths, kChunk samples
-// at a time, as Embree packets of rays sorted by direction: rays that share an origin and nearly a
-// direction share most of their BVH traversal. Only the grouping of rays into packets changes;
-// each sample's random numbers, rays and the order of the sum do not.
+// Without a medium, a call of at least kMinPacketSamples samples traces kChunk samples at a time
+// in two waves ahead of the rest of their paths: first the rays from the probe (each path's first
+// ray, each probe light sample's shadow ray), then the rays of each path's first scattering
+// vertex (its light sample's shadow ray and its continuation), as Embree packets: the probe's rays
+// sorted by direction, so that rays that share an origin and nearly a direction share most of
+// their BVH traversal, and the first vertices' rays in that same order, so that a packet's rays
+// start from neighbouring points. Only the grouping of rays into packets changes; each sample's
+// random numbers, rays and the order of the sum do not.
 #pragma once
 
 #include <atomic>
@@ -105,7 +108,64 @@ class ProbeIntegrator {
   static constexpr int kChunk = kSamplesPerCall;
   static_assert(kChunk == 1 << (2 * kCellBits), "one direction cell per sample");
   static constexpr int kMinPacketSamples = 128;
-  static constexpr uint16_t kNoShadowRay = 0xFFFF;
+  // A sample's ray slot when it has no such ray, and when its shadow ray needed no tracing.
+  static constexpr uint16_t kNoRay = 0xFFFF, kVisible = 0xFFFE;
+  // Dimension sets drawn at the probe (direction, light choice, light point) and at each
+  // scattering vertex (VertexNumbers).
+  static constexpr uint64_t kProbeSets = 3, kVertexSets = 4;
+
+  // The random numbers of one scattering vertex, in the order they are drawn.
+  struct VertexNumbers {
+    double select = 0;  // light choice
+    Vec2d light;        // light point
+    Vec2d next;         // continuation direction
+    double roulette = 0;
+  };
+  template <typename S>
+  static VertexNumbers DrawVertexNumbers(S& sampler);
+  // Where a path resumes: the ray of vertex `bounce` from origin (the previous vertex pPrev, whose
+  // surface normal is nPrev, nullptr at the probe or in the medium) along wi, drawn with pdf
+  // pdfDir, with the radiance gathered so far and the throughput beta.
+  struct PathStart {
+    Vec3f origin;
+    Vec3d pPrev;
+    const Vec3d* nPrev = nullptr;
+    Vec3d wi;
+    double pdfDir = 0;
+    Vec3d radiance;
+    Vec3d beta{1, 1, 1};
+    int bounce = 1;
+  };
+  // A diffuse vertex once shaded, before its rays are traced.
+  struct SurfaceVertex {
+    Vec3d n;           // the shading normal, toward the side the path arrived from
+    Vec3f spawn;       // the origin of the vertex's rays
+    double total = 0;  // the sum of its light importance
+    // Its light sample, when one was drawn that can reach it: neeBase tr neeScale is its
+    // contribution, tr the shadow ray's transmittance.
+    bool lightSampled = false;
+    LightSample ls;
+    Vec3d neeBase;
+    double neeScale = 0;
+    // Whether the path goes on (it is not absorbed or stopped by roulette), along wi (pdf pdfDir).
+    bool continues = false;
+    Vec3d wi;
+    double pdfDir = 0;
+  };
+  // A sample's first scattering vertex, traced ahead of its path (by sample).
+  struct FirstVertex {
+    Vec3d radiance;  // gathered up to the vertex (emission its ray found)
+    Vec3d beta;      // the continuation's throughput
+    Vec3d neeBase;   // the light sample's contribution is neeBase neeScale unless occluded
+    double neeScale = 0;
+    uint16_t shadowSlot = kNoRay;  // its light sample's shadow ray; kVisible: no ray needed
+    uint16_t nextSlot = kNoRay;    // the continuation's ray; kNoRay: the path ends at the vertex
+    // The continuation's PathStart (valid when nextSlot is not kNoRay) and light importance sum.
+    Vec3f spawn;
+    Vec3d p, n, wi;
+    double pdfDir = 0;
+    double total = 0;
+  };
 
   // A position in the samples of several batches run one after the other: sample `index` of
   // work[batch] (empty batches are skipped).
@@ -122,17 +182,24 @@ class ProbeIntegrator {
     size_t batch = 0;
     int64_t index = 0;
   };
-  // A chunk's rays from the probe: each sample's first path ray and its light sample's shadow
-  // ray, traced ahead of the paths (kMedium false only). "By sample": index j of sample c + j;
-  // "by slot": the ray's place in the packets.
+  // A chunk's rays from the probe and from its paths' first vertices, traced ahead of the paths
+  // (kMedium false only). "By sample": index j of sample c + j; "by slot": the ray's place in the
+  // packets.
   struct ProbeRays {
-    Vec3d wi[kChunk];           // by sample: the probe direction
-    uint16_t hitSlot[kChunk];   // by sample
-    bool found[kChunk];         // by slot: whether the first ray hit
-    SurfaceHit hit[kChunk];     // by slot: the hit, valid when found
-    LightSample light[kChunk];  // by sample: the light sample, when shadowSlot is not kNoShadowRay
-    uint16_t shadowSlot[kChunk];  // by sample: kNoShadowRay when no light was sampled
-    bool occluded[kChunk + 1];    // by slot
+    Vec3d wi[kChunk];              // by sample: the probe direction
+    uint16_t hitSlot[kChunk];      // by sample
+    bool found[kChunk];            // by slot: whether the first ray hit
+    SurfaceHit hit[kChunk];        // by slot: the hit, valid when found
+    LightSample light[kChunk];     // by sample: the light sample, when shadowSlot is not kNoRay
+    uint16_t shadowSlot[kChunk];   // by sample: kNoRay when no light was sampled
+    bool occluded[kChunk + 1];     // by slot
+    VertexNumbers vertex[kChunk];  // by sample: the first vertex's random numbers
+    FirstVertex first[kChunk];     // by sample
+    bool firstOccluded[kChunk];    // by slot of FirstVertex::shadowSlot
+    bool nextFound[kChunk];        // by slot of FirstVertex::nextSlot
+    SurfaceHit nextHit[kChunk];    // by slot: valid when nextFound
+    // By sample: the first vertex's light importance (LightSet::ImportanceSize() entries each).
+    std::vector<double> importance;
   };
   // One path's first ray.
   struct FirstSegment {
@@ -148,18 +215,39 @@ class ProbeIntegrator {
   // the probe at p (float origin `origin`, light importance `importance` summing to `total`):
   // draws their first random dimensions, samples the lights as TraceBatchesWith would, and
   // traces the rays.
+  // Also draws each sample's first vertex numbers.
   template <typename S>
   void TraceProbeRays(const Vec3f& origin, const Vec3d& p, std::span<const double> importance,
                       double total, std::span<S> samplers, SampleCursor cursor, int n,
                       ProbeRays* out, TraceCounters* counters) const;
-  // The radiance arriving at p from direction wi, by the path traced from `origin` (p's float
-  // ray origin). firstSegment: the hit of the path's first ray, traced already, or nullptr to
-  // trace it here.
+  // Fills out->first and the rays it refers to for the n samples whose rays from the probe at p
+  // (light importance `importance` summing to `total`, direction pdf pdfProbe) TraceProbeRays
+  // traced: shades each path's first vertex as TracePath would and traces its rays.
+  void TraceFirstVertices(const Vec3d& p, std::span<const double> importance, double total,
+                          double pdfProbe, int n, ProbeRays* out, TraceCounters* counters) const;
+  // The radiance arriving along the path from `start` on: start.radiance plus what the path
+  // gathers from vertex start.bounce on, with the sampler at that vertex's numbers (at the probe,
+  // start.bounce 1, past the probe's own). segment: the hit of the ray from start.origin, traced
+  // already, or nullptr to trace it here. importancePrev: the light importance at start.pPrev,
+  // summing to totalPrev (overwritten, as is scratch).
   template <bool kMedium, typename S>
-  Vec3d TracePath(const Vec3f& origin, const Vec3d& p, Vec3d wi, double pdfDir,
-                  const FirstSegment* firstSegment, std::span<double> importancePrev,
-                  double totalPrev, std::span<double> scratch, S& sampler,
-                  TraceCounters* counters) const;
+  Vec3d TracePath(const PathStart& start, const FirstSegment* segment,
+                  std::span<double> importancePrev, double totalPrev, std::span<double> scratch,
+                  S& sampler, TraceCounters* counters) const;
+  // Adds to *radiance the emission that the ray from pPrev (normal nPrev, light importance
+  // importancePrev summing to totalPrev) along wi, drawn with pdf pdfDir, finds at `hit` or, when
+  // not found, beyond the scene, times beta and its MIS weight. Returns the albedo of the diffuse
+  // vertex the path continues from, or nullptr when it ends there (no hit, a light's surface, or
+  // bounce past maxDepth).
+  const Vec3d* Arrive(bool found, const SurfaceHit& hit, int bounce, const Vec3d& pPrev,
+                      const Vec3d* nPrev, std::span<const double> importancePrev, double totalPrev,
+                      const Vec3d& wi, double pdfDir, const Vec3d& beta, Vec3d* radiance) const;
+  // Shades the diffuse vertex (albedo > 0) at `hit`, reached along wi, as vertex `bounce` with the
+  // numbers u: its light sample, continuation and roulette. `importance` gets its light
+  // importance; *beta becomes the continuation's throughput.
+  void ShadeSurface(const SurfaceHit& hit, const Vec3d& wi, const Vec3d& albedo,
+                    const VertexNumbers& u, int bounce, std::span<double> importance, Vec3d* beta,
+                    SurfaceVertex* v) const;
   // The shadow ray from `origin` to the sampled light point: false when none is needed (the
   // point lies within float error of the origin: visible).
   bool ShadowRay(const Vec3f& origin, const LightSample& s, Vec3d* dir, double* tMax) const;

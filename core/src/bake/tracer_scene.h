@@ -46,15 +46,17 @@ class TracerScene {
   bool Intersect(const Vec3f& origin, const Vec3d& dir, double tMax, SurfaceHit* hit) const;
   // Rays traced together by IntersectPacket.
   static constexpr int kPacketWidth = 8;
-  // Intersect(origin, dirs[k], inf, &hits[k]) for up to kPacketWidth unit directions from one
-  // origin, traced as one packet: found[k] is its return value (hits[k] is left alone on a miss).
-  // Cheaper per ray than Intersect when the directions are close, since they share most of the
-  // BVH traversal; the hits may differ from Intersect's in the last float bits.
-  void IntersectPacket(const Vec3f& origin, std::span<const Vec3d> dirs, SurfaceHit* hits,
-                       bool* found) const;
-  // occluded[k] = Occluded(origin, dirs[k], tMax[k]) for up to kPacketWidth rays, as one packet.
-  void OccludedPacket(const Vec3f& origin, std::span<const Vec3d> dirs, const double* tMax,
-                      bool* occluded) const;
+  // Intersect(origins[k], dirs[k], inf, &hits[k]) for up to kPacketWidth unit directions, traced
+  // as one packet: found[k] is its return value (hits[k] is left alone on a miss). `origins` holds
+  // one origin per ray, or a single one that all the rays share. Cheaper per ray than Intersect
+  // when the rays are close, since they share most of the BVH traversal; the hits may differ from
+  // Intersect's in the last float bits.
+  void IntersectPacket(std::span<const Vec3f> origins, std::span<const Vec3d> dirs,
+                       SurfaceHit* hits, bool* found) const;
+  // occluded[k] = Occluded(origins[k], dirs[k], tMax[k]) for up to kPacketWidth rays, as one
+  // packet; `origins` as above.
+  void OccludedPacket(std::span<const Vec3f> origins, std::span<const Vec3d> dirs,
+                      const double* tMax, bool* occluded) const;
   // True when anything lies along origin + t dir, t in (0, tMax).
   bool Occluded(const Vec3f& origin, const Vec3d& dir, double tMax) const;
   // True when a mesh triangle lies within `radius` of p (area lights' surfaces are not counted).

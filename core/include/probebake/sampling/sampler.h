@@ -6,7 +6,8 @@
 //   - A sampler is built from (seed, stream); the caller derives stream by hashing, e.g.
 //     Hash(probeKey, batchIndex) with the probe's position key (core/src/bake/probe_site.h).
 //     StartSample(index) selects the sample within the stream and resets the dimension counter;
-//     each Get1D() or Get2D() call then consumes one dimension (set). The value returned depends
+//     each Get1D() or Get2D() call then consumes one dimension (set). StartSample(index, d) starts
+//     at dimension set d instead, as if d sets had been drawn. The value returned depends
 //     only on (seed, stream, index, dimension, kind of call): never on call history, other streams,
 //     threads or time. Copies are independent.
 //   - Values are k * 2^-32 for an integer k in [0, 2^32), so they lie in [0, 1) exactly
@@ -58,11 +59,11 @@ class SobolSampler {
  public:
   SobolSampler(uint64_t seed, uint64_t stream) : streamHash_(Hash(seed, stream)) {}
 
-  void StartSample(uint64_t index) {
+  void StartSample(uint64_t index, uint64_t firstSet = 0) {
     PB_CHECK_LT(index, uint64_t{1} << 32);
     reversedIndex_ = ReverseBits32(static_cast<uint32_t>(index));
-    dimension_ = 0;
-    chunkEnd_ = 0;
+    dimension_ = firstSet;
+    chunkEnd_ = firstSet;
   }
 
   double Get1D() { return U32ToUnit(x_[NextInChunk()]); }
@@ -107,8 +108,9 @@ class SobolSampler {
     *s2 = uint32_t(MixBits(key));
   }
 
+  // A chunk that straddles the cached sets' end (after a StartSample past set 0) computes its
+  // seeds as the chunks past it do.
   static constexpr uint64_t kCachedSets = 48;
-  static_assert(kCachedSets % kSobolChunk == 0, "chunks never straddle the cached sets' end");
   uint64_t streamHash_;         // Hash(seed, stream)
   uint32_t reversedIndex_ = 0;  // ReverseBits32(index)
   uint64_t dimension_ = 0;
@@ -123,9 +125,9 @@ class IndependentSampler {
   IndependentSampler(uint64_t seed, uint64_t stream)
       : streamHash_(Hash(seed, stream)), sampleHash_(HashCombine(streamHash_, 0)) {}
 
-  void StartSample(uint64_t index) {
+  void StartSample(uint64_t index, uint64_t firstSet = 0) {
     sampleHash_ = HashCombine(streamHash_, index);
-    dimension_ = 0;
+    dimension_ = firstSet;
   }
 
   double Get1D() { return U32ToUnit(static_cast<uint32_t>(NextDimensionHash() >> 32)); }
