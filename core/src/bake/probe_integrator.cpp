@@ -60,7 +60,8 @@ uint32_t MortonInterleave(uint32_t x, uint32_t y) {
 }  // namespace
 
 template <typename S>
-ProbeIntegrator::VertexNumbers ProbeIntegrator::DrawVertexNumbers(S& sampler) {
+[[gnu::always_inline]] inline ProbeIntegrator::VertexNumbers ProbeIntegrator::DrawVertexNumbers(
+    S& sampler) {
   VertexNumbers v;
   v.select = sampler.Get1D();
   v.light = sampler.Get2D();
@@ -249,20 +250,19 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
       }
 
       if (probeLightSample) {
-        LightSample ls;
-        Vec3d tr;
-        if (probeRays) {
-          const uint16_t slot = probeRays->shadowSlot[j];
-          if (slot != kNoRay) {
-            ls = probeRays->light[j];
-            if (!probeRays->occluded[slot]) tr = {1, 1, 1};
-          }
-        } else if (lights_.Sample(p, nullptr, importanceProbe, totalProbe, uSelect, uLight, &ls)) {
-          tr = Shadow<kMedium>(origin, ls, &local);
-        }
-        if (MaxComponent(tr) > 0) {
+        const auto add = [&](const LightSample& ls, const Vec3d& tr) {
+          if (MaxComponent(tr) <= 0) return;
           const double w = mis_ ? PowerHeuristic(ls.pdf, pdfProbe) : 1.0;
           Project(order, ls.wi, ls.radiance * tr * (w / ls.pdf), sum);
+        };
+        if (probeRays) {
+          // Read in place: zeroing a local LightSample (rep stos) took 0.8% of a bake (perf).
+          const uint16_t slot = probeRays->shadowSlot[j];
+          if (slot != kNoRay && !probeRays->occluded[slot]) add(probeRays->light[j], {1, 1, 1});
+        } else {
+          LightSample ls;
+          if (lights_.Sample(p, nullptr, importanceProbe, totalProbe, uSelect, uLight, &ls))
+            add(ls, Shadow<kMedium>(origin, ls, &local));
         }
       }
       if (MaxComponent(radiance) > 0) Project(order, wi, radiance / pdfProbe, sum);
