@@ -201,7 +201,7 @@ class ProbeIntegrator {
     // By sample: the first vertex's light importance (LightSet::ImportanceSize() entries each).
     std::vector<double> importance;
   };
-  // One path's first ray.
+  // A path's ray traced ahead of it (its first, or its first vertex's continuation).
   struct FirstSegment {
     bool found = false;
     const SurfaceHit* hit = nullptr;  // valid when found
@@ -213,9 +213,8 @@ class ProbeIntegrator {
                         const std::atomic<bool>* cancel) const;
   // Fills `out` for the n <= kChunk samples from `cursor` on (samplers[k]: batch k's stream) at
   // the probe at p (float origin `origin`, light importance `importance` summing to `total`):
-  // draws their first random dimensions, samples the lights as TraceBatchesWith would, and
-  // traces the rays.
-  // Also draws each sample's first vertex numbers.
+  // draws their random numbers at the probe and at the first vertex (out->vertex), samples the
+  // lights as TraceBatchesWith would, and traces the rays.
   template <typename S>
   void TraceProbeRays(const Vec3f& origin, const Vec3d& p, std::span<const double> importance,
                       double total, std::span<S> samplers, SampleCursor cursor, int n,
