@@ -214,8 +214,7 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
         wi = probeRays->wi[j];
         const FirstVertex& f = probeRays->first[j];
         radiance = f.radiance;
-        if (f.shadowSlot == kVisible ||
-            (f.shadowSlot != kNoRay && !probeRays->firstOccluded[f.shadowSlot])) {
+        if (Reaches(f.shadowSlot, probeRays->firstOccluded)) {
           const Vec3d tr{1, 1, 1};  // as TracePath adds it
           radiance += f.neeBase * tr * f.neeScale;
         }
@@ -258,7 +257,7 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
         if (probeRays) {
           // Read in place: zeroing a local LightSample (rep stos) took 0.8% of a bake (perf).
           const uint16_t slot = probeRays->shadowSlot[j];
-          if (slot != kNoRay && !probeRays->occluded[slot]) add(probeRays->light[j], {1, 1, 1});
+          if (Reaches(slot, probeRays->occluded)) add(probeRays->light[j], {1, 1, 1});
         } else {
           LightSample ls;
           if (lights_.Sample(p, nullptr, importanceProbe, totalProbe, uSelect, uLight, &ls))
@@ -286,9 +285,8 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
   // by octahedral cell of their direction. The rays' order changes only which rays share a packet,
   // never a result.
   static_assert(kChunk == (1 << (2 * kCellBits)));
-  static_assert(kChunk < kNoRay);
-  // shadowCell's values for samples without a shadow ray.
-  constexpr uint16_t kNoLightSample = 0xFFFF, kVisibleCell = 0xFFFE;
+  static_assert(kChunk <= kVisible, "slots never meet the markers");
+  // shadowCell is a sample's bucket, or kNoRay / kVisible when it has no shadow ray to trace.
   const bool lightSample = lightSampling_ && total > 0;
   uint16_t hitCell[kChunk], shadowCell[kChunk];
   int hitStart[kChunk + 1] = {}, shadowStart[kChunk + 1] = {};
@@ -308,13 +306,13 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
     hitCell[j] = uint16_t(MortonInterleave(cellIndex(uDirection.x), cellIndex(uDirection.y)));
     ++hitStart[hitCell[j] + 1];
 
-    shadowCell[j] = kNoLightSample;
+    shadowCell[j] = kNoRay;
     if (!lightSample) continue;
     LightSample& ls = out->light[j];
     if (!lights_.Sample(p, nullptr, importance, total, uSelect, uLight, &ls)) continue;
     ++counters->rays;  // counted as Unoccluded counts it, traced or not
     if (!ShadowRay(origin, ls, &shadowDir[j], &shadowTMax[j])) {
-      shadowCell[j] = kVisibleCell;
+      shadowCell[j] = kVisible;
       continue;
     }
     // Octahedral map of the direction, then cells of 2^(kCellBits - 1) squared per light.
@@ -353,10 +351,8 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
   const int rays = shadowStart[kChunk];
   double sortedTMax[kChunk];
   for (int j = 0; j < n; ++j) {
-    if (shadowCell[j] == kNoLightSample) {
-      out->shadowSlot[j] = kNoRay;
-    } else if (shadowCell[j] == kVisibleCell) {
-      out->shadowSlot[j] = uint16_t(rays);  // past the traced rays: never occluded
+    if (shadowCell[j] == kNoRay || shadowCell[j] == kVisible) {
+      out->shadowSlot[j] = shadowCell[j];
     } else {
       const int k = shadowStart[shadowCell[j]]++;
       out->shadowSlot[j] = uint16_t(k);
@@ -369,7 +365,6 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
     tracer_.OccludedPacket({&origin, 1}, std::span<const Vec3d>(sortedDir + k, size_t(m)),
                            sortedTMax + k, out->occluded + k);
   }
-  out->occluded[rays] = false;
 }
 
 void ProbeIntegrator::TraceFirstVertices(const Vec3d& p, std::span<const double> importance,

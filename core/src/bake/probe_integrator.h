@@ -110,6 +110,11 @@ class ProbeIntegrator {
   static constexpr int kMinPacketSamples = 128;
   // A sample's ray slot when it has no such ray, and when its shadow ray needed no tracing.
   static constexpr uint16_t kNoRay = 0xFFFF, kVisible = 0xFFFE;
+  // Whether the light sample whose shadow ray has `slot` reaches its origin, given the traced
+  // rays' `occluded` by slot.
+  static bool Reaches(uint16_t slot, const bool* occluded) {
+    return slot == kVisible || (slot != kNoRay && !occluded[slot]);
+  }
   // Dimension sets drawn at the probe (direction, light choice, light point) and at each
   // scattering vertex (VertexNumbers).
   static constexpr uint64_t kProbeSets = 3, kVertexSets = 4;
@@ -191,8 +196,8 @@ class ProbeIntegrator {
     bool found[kChunk];            // by slot: whether the first ray hit
     SurfaceHit hit[kChunk];        // by slot: the hit, valid when found
     LightSample light[kChunk];     // by sample: the light sample, when shadowSlot is not kNoRay
-    uint16_t shadowSlot[kChunk];   // by sample: kNoRay when no light was sampled
-    bool occluded[kChunk + 1];     // by slot
+    uint16_t shadowSlot[kChunk];   // by sample: kNoRay when no light was sampled, or kVisible
+    bool occluded[kChunk];         // by slot
     VertexNumbers vertex[kChunk];  // by sample: the first vertex's random numbers
     FirstVertex first[kChunk];     // by sample
     bool firstOccluded[kChunk];    // by slot of FirstVertex::shadowSlot
