@@ -88,7 +88,13 @@ void InitRay(RTCRay& ray, const Vec3f& origin, const Vec3d& dir, double tMax) {
   ray.flags = 0;
 }
 
-// Lane k of an 8-ray packet set to `one`.
+// The step between a packet's ray origins: 0 when all its rays share origins[0], else 1 (one
+// origin per ray).
+size_t OriginStep(std::span<const Vec3f> origins, std::span<const Vec3d> dirs) {
+  PB_CHECK(origins.size() == 1 || origins.size() == dirs.size());
+  return origins.size() == 1 ? 0 : 1;
+}
+
 // Rays from one origin (the caller sorts them by direction) share most of their BVH traversal:
 // Embree's coherent mode. Rays from several origins (neighbouring surface points, toward one
 // light or on in cosine-distributed directions) are not that alike: flagged coherent, the first
@@ -99,6 +105,7 @@ RTCIntersectContextFlags PacketFlags(size_t originStep) {
                          : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
 }
 
+// Lane k of an 8-ray packet set to `one`.
 void SetLane(RTCRay8& packet, int k, const RTCRay& one) {
   packet.org_x[k] = one.org_x;
   packet.org_y[k] = one.org_y;
@@ -304,8 +311,7 @@ bool TracerScene::Intersect(const Vec3f& origin, const Vec3d& dir, double tMax,
 void TracerScene::IntersectPacket(std::span<const Vec3f> origins, std::span<const Vec3d> dirs,
                                   SurfaceHit* hits, bool* found) const {
   PB_CHECK_LE(dirs.size(), size_t(kPacketWidth));
-  PB_CHECK(origins.size() == 1 || origins.size() == dirs.size());
-  const size_t originStep = origins.size() == 1 ? 0 : 1;
+  const size_t originStep = OriginStep(origins, dirs);
   static_assert(kPacketWidth == 8, "rtcIntersect8 below");
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
@@ -336,8 +342,7 @@ void TracerScene::IntersectPacket(std::span<const Vec3f> origins, std::span<cons
 void TracerScene::OccludedPacket(std::span<const Vec3f> origins, std::span<const Vec3d> dirs,
                                  const double* tMax, bool* occluded) const {
   PB_CHECK_LE(dirs.size(), size_t(kPacketWidth));
-  PB_CHECK(origins.size() == 1 || origins.size() == dirs.size());
-  const size_t originStep = origins.size() == 1 ? 0 : 1;
+  const size_t originStep = OriginStep(origins, dirs);
   RTCIntersectContext context;
   rtcInitIntersectContext(&context);
   context.flags = PacketFlags(originStep);
