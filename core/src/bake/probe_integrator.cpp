@@ -184,7 +184,8 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
     thread_local std::unique_ptr<ProbeRays> buffer;
     if (!buffer) buffer = std::make_unique<ProbeRays>();
     probeRays = buffer.get();
-    probeRays->importance.resize(kChunk * lights_.ImportanceSize());
+    for (std::vector<double>& v : probeRays->importance)
+      v.resize(kChunk * lights_.ImportanceSize());
   }
 
   const int64_t chunk = probeRays ? kChunk : count;
@@ -195,7 +196,8 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
     if (probeRays) {
       TraceProbeRays(origin, p, importanceProbe, totalProbe, std::span<S>(samplers), cursor, int(n),
                      probeRays, &local);
-      TraceFirstVertices(p, importanceProbe, totalProbe, pdfProbe, int(n), probeRays, &local);
+      TraceWaves(p, importanceProbe, totalProbe, pdfProbe, std::span<S>(samplers), int(n),
+                 probeRays, &local);
     }
     for (int64_t j = 0; j < n; ++j, cursor.Next()) {
       if (((c + j) & 255) == 0) {
@@ -209,25 +211,10 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
       Vec2d uLight;
       double uSelect = 0;
       if (probeRays) {
-        // TraceProbeRays found this direction from the same numbers, and TraceFirstVertices
-        // shaded the path's first vertex.
+        // TraceProbeRays found this direction from the same numbers, and TraceWaves traced the
+        // path.
         wi = probeRays->wi[j];
-        const FirstVertex& f = probeRays->first[j];
-        radiance = f.radiance;
-        if (Reaches(f.shadowSlot, probeRays->firstOccluded)) {
-          const Vec3d tr{1, 1, 1};  // as TracePath adds it
-          radiance += f.neeBase * tr * f.neeScale;
-        }
-        if (f.nextSlot != kNoRay) {
-          sampler.StartSample(uint64_t(cursor.index), kProbeSets + kVertexSets);
-          const PathStart start{f.spawn, f.p, &f.n, f.wi, f.pdfDir, radiance, f.beta, 2};
-          const FirstSegment next{probeRays->nextFound[f.nextSlot],
-                                  &probeRays->nextHit[f.nextSlot]};
-          const size_t size = importanceProbe.size();
-          radiance = TracePath<kMedium>(
-              start, &next, std::span<double>(probeRays->importance.data() + j * size, size),
-              f.total, scratchB, sampler, &local);
-        }
+        radiance = probeRays->path[j].radiance;
       } else {
         sampler.StartSample(uint64_t(cursor.index));
         const Vec2d uDirection = sampler.Get2D();
@@ -239,13 +226,8 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
         if (probeLightSample) lights_.Prefetch(uLight);
         wi = SampleUniformSphere(uDirection);
         std::copy(importanceProbe.begin(), importanceProbe.end(), scratchA.begin());
-        PathStart start;
-        start.origin = origin;
-        start.pPrev = p;
-        start.wi = wi;
-        start.pdfDir = pdfProbe;
-        radiance =
-            TracePath<kMedium>(start, nullptr, scratchA, totalProbe, scratchB, sampler, &local);
+        radiance = TracePath<kMedium>(origin, p, wi, pdfProbe, scratchA, totalProbe, scratchB,
+                                      sampler, &local);
       }
 
       if (probeLightSample) {
@@ -298,6 +280,8 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
   for (int j = 0; j < n; ++j, cursor.Next()) {
     S& sampler = samplers[cursor.batch];
     sampler.StartSample(uint64_t(cursor.index));
+    out->batch[j] = uint32_t(cursor.batch);
+    out->index[j] = cursor.index;
     const Vec2d uDirection = sampler.Get2D();
     const double uSelect = sampler.Get1D();
     const Vec2d uLight = sampler.Get2D();
@@ -367,69 +351,111 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
   }
 }
 
-void ProbeIntegrator::TraceFirstVertices(const Vec3d& p, std::span<const double> importance,
-                                         double total, double pdfProbe, int n, ProbeRays* out,
-                                         TraceCounters* counters) const {
-  // In slot order: neighbouring slots hold neighbouring probe directions, whose hits are
-  // neighbours too, and so are the rays from them (to one light, or on to nearby surfaces).
-  uint16_t sampleOfSlot[kChunk];
-  for (int j = 0; j < n; ++j) sampleOfSlot[out->hitSlot[j]] = uint16_t(j);
+template <typename S>
+void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importance, double total,
+                                 double pdfProbe, std::span<S> samplers, int n, ProbeRays* out,
+                                 TraceCounters* counters) const {
   const size_t size = lights_.ImportanceSize();
+  // The wave's paths by slot of the rays that find their next vertex: the first wave in the probe
+  // rays' order (neighbouring slots hold neighbouring directions, whose hits are neighbours too,
+  // and so are the rays from them), each later one in the order of the one before.
+  uint16_t active[kChunk], next[kChunk];
+  for (int j = 0; j < n; ++j) {
+    active[out->hitSlot[j]] = uint16_t(j);
+    PathState& s = out->path[j];
+    s.radiance = {};
+    s.beta = {1, 1, 1};
+    s.wi = out->wi[j];
+    s.pdfDir = pdfProbe;
+    s.pPrev = p;
+    s.hasNormal = false;
+    s.total = total;
+  }
   Vec3f shadowOrigin[kChunk], nextOrigin[kChunk];
   Vec3d shadowDir[kChunk], nextDir[kChunk];
   double shadowTMax[kChunk];
-  int shadowRays = 0, nextRays = 0;
-  for (int k = 0; k < n; ++k) {
-    const int j = sampleOfSlot[k];
-    FirstVertex& f = out->first[j];
-    f.radiance = {};
-    f.beta = {1, 1, 1};
-    f.shadowSlot = kNoRay;
-    f.nextSlot = kNoRay;
-    const SurfaceHit& hit = out->hit[k];
-    const Vec3d& wi = out->wi[j];
-    const Vec3d* albedo = Arrive(out->found[k], hit, 1, p, nullptr, importance, total, wi, pdfProbe,
-                                 f.beta, &f.radiance);
-    if (!albedo || MaxComponent(*albedo) <= 0) continue;
-    SurfaceVertex v;
-    ShadeSurface(hit, wi, *albedo, out->vertex[j], 1,
-                 std::span<double>(out->importance.data() + j * size, size), &f.beta, &v);
-    if (v.lightSampled) {
-      f.neeBase = v.neeBase;
-      f.neeScale = v.neeScale;
-      ++counters->rays;  // counted as Unoccluded counts it, traced or not
-      if (ShadowRay(v.spawn, v.ls, &shadowDir[shadowRays], &shadowTMax[shadowRays])) {
-        shadowOrigin[shadowRays] = v.spawn;
-        f.shadowSlot = uint16_t(shadowRays++);
+  const bool* found = out->found;
+  const SurfaceHit* hits = out->hit;
+  constexpr int kWidth = TracerScene::kPacketWidth;
+  for (int bounce = 1, count = n; count > 0; ++bounce) {
+    double* importanceHere = out->importance[bounce & 1].data();
+    const double* importanceBefore = out->importance[(bounce - 1) & 1].data();
+    int shadowRays = 0, nextRays = 0;
+    for (int k = 0; k < count; ++k) {
+      const int j = active[k];
+      PathState& s = out->path[j];
+      s.shadowSlot = kNoRay;
+      const SurfaceHit& hit = hits[k];
+      const std::span<const double> before =
+          bounce == 1 ? importance : std::span<const double>(importanceBefore + j * size, size);
+      const Vec3d* albedo = Arrive(found[k], hit, bounce, s.pPrev, s.hasNormal ? &s.nPrev : nullptr,
+                                   before, s.total, s.wi, s.pdfDir, s.beta, &s.radiance);
+      if (!albedo || MaxComponent(*albedo) <= 0) continue;
+      SurfaceVertex v;
+      ShadeSurface(hit, s.wi, *albedo, out->vertex[j], bounce,
+                   std::span<double>(importanceHere + j * size, size), &s.beta, &v);
+      if (v.lightSampled) {
+        s.neeBase = v.neeBase;
+        s.neeScale = v.neeScale;
+        ++counters->rays;  // counted as Unoccluded counts it, traced or not
+        if (ShadowRay(v.spawn, v.ls, &shadowDir[shadowRays], &shadowTMax[shadowRays])) {
+          shadowOrigin[shadowRays] = v.spawn;
+          s.shadowSlot = uint16_t(shadowRays++);
+        } else {
+          s.shadowSlot = kVisible;
+        }
+      }
+      if (!v.continues) continue;
+      s.wi = v.wi;
+      s.pdfDir = v.pdfDir;
+      s.pPrev = hit.p;
+      s.nPrev = v.n;
+      s.hasNormal = true;
+      s.total = v.total;
+      // The next vertex's numbers, as TracePath draws them: vertex d's sets start at kProbeSets +
+      // (d - 1) kVertexSets, and a sampler restarted at an even vertex's computes that vertex's
+      // sets and the next one's together (kSobolChunk = 2 kVertexSets), so they are drawn
+      // together. Its light tables load while the rays are traced.
+      static_assert(kSobolChunk == 2 * kVertexSets);
+      if ((bounce + 1) % 2 == 0) {
+        S& sampler = samplers[out->batch[j]];
+        sampler.StartSample(uint64_t(out->index[j]), kProbeSets + uint64_t(bounce) * kVertexSets);
+        out->vertex[j] = DrawVertexNumbers(sampler);
+        out->after[j] = DrawVertexNumbers(sampler);
       } else {
-        f.shadowSlot = kVisible;
+        out->vertex[j] = out->after[j];
+      }
+      if (lightSampling_) lights_.Prefetch(out->vertex[j].light);
+      nextOrigin[nextRays] = v.spawn;
+      nextDir[nextRays] = v.wi;
+      next[nextRays++] = uint16_t(j);
+    }
+    for (int k = 0; k < shadowRays; k += kWidth) {
+      const size_t m = size_t(std::min(kWidth, shadowRays - k));
+      tracer_.OccludedPacket(std::span<const Vec3f>(shadowOrigin + k, m),
+                             std::span<const Vec3d>(shadowDir + k, m), shadowTMax + k,
+                             out->vertexOccluded + k);
+    }
+    for (int k = 0; k < count; ++k) {
+      PathState& s = out->path[active[k]];
+      if (Reaches(s.shadowSlot, out->vertexOccluded)) {
+        const Vec3d tr{1, 1, 1};  // as TracePath adds it
+        s.radiance += s.neeBase * tr * s.neeScale;
       }
     }
-    if (!v.continues) continue;
-    f.spawn = v.spawn;
-    f.p = hit.p;
-    f.n = v.n;
-    f.wi = v.wi;
-    f.pdfDir = v.pdfDir;
-    f.total = v.total;
-    nextOrigin[nextRays] = v.spawn;
-    nextDir[nextRays] = v.wi;
-    f.nextSlot = uint16_t(nextRays++);
+    // The hits just read are overwritten only now.
+    for (int k = 0; k < nextRays; k += kWidth) {
+      const size_t m = size_t(std::min(kWidth, nextRays - k));
+      tracer_.IntersectPacket(std::span<const Vec3f>(nextOrigin + k, m),
+                              std::span<const Vec3d>(nextDir + k, m), out->nextHit + k,
+                              out->nextFound + k);
+    }
+    counters->rays += nextRays;
+    std::copy(next, next + nextRays, active);
+    count = nextRays;
+    found = out->nextFound;
+    hits = out->nextHit;
   }
-  constexpr int kWidth = TracerScene::kPacketWidth;
-  for (int k = 0; k < shadowRays; k += kWidth) {
-    const size_t m = size_t(std::min(kWidth, shadowRays - k));
-    tracer_.OccludedPacket(std::span<const Vec3f>(shadowOrigin + k, m),
-                           std::span<const Vec3d>(shadowDir + k, m), shadowTMax + k,
-                           out->firstOccluded + k);
-  }
-  for (int k = 0; k < nextRays; k += kWidth) {
-    const size_t m = size_t(std::min(kWidth, nextRays - k));
-    tracer_.IntersectPacket(std::span<const Vec3f>(nextOrigin + k, m),
-                            std::span<const Vec3d>(nextDir + k, m), out->nextHit + k,
-                            out->nextFound + k);
-  }
-  counters->rays += nextRays;
 }
 
 [[gnu::always_inline]] inline const Vec3d* ProbeIntegrator::Arrive(
@@ -497,21 +523,17 @@ void ProbeIntegrator::TraceFirstVertices(const Vec3d& p, std::span<const double>
 }
 
 template <bool kMedium, typename S>
-Vec3d ProbeIntegrator::TracePath(const PathStart& start, const FirstSegment* segment,
-                                 std::span<double> importancePrev, double totalPrev,
-                                 std::span<double> scratch, S& sampler,
+Vec3d ProbeIntegrator::TracePath(const Vec3f& originProbe, const Vec3d& p, const Vec3d& wiProbe,
+                                 double pdfProbe, std::span<double> importancePrev,
+                                 double totalPrev, std::span<double> scratch, S& sampler,
                                  TraceCounters* counters) const {
-  Vec3d radiance = start.radiance, beta = start.beta, wi = start.wi;
-  double pdfDir = start.pdfDir;
-  Vec3f origin = start.origin;
-  Vec3d pPrev = start.pPrev;
+  Vec3d radiance, beta{1, 1, 1}, wi = wiProbe;
+  double pdfDir = pdfProbe;
+  Vec3f origin = originProbe;
+  Vec3d pPrev = p;
   Vec3d nPrevStorage;
   const Vec3d* nPrev = nullptr;  // the probe and medium vertices have no surface
-  if (start.nPrev) {
-    nPrevStorage = *start.nPrev;
-    nPrev = &nPrevStorage;
-  }
-  for (int bounce = start.bounce;; ++bounce) {
+  for (int bounce = 1;; ++bounce) {
     // Without a medium the vertex's random numbers are drawn before its ray is traced (a path
     // that ends there leaves them unused, and the next sample restarts the sampler), so that the
     // light sample's memory loads while Embree traces.
@@ -521,14 +543,8 @@ Vec3d ProbeIntegrator::TracePath(const PathStart& start, const FirstSegment* seg
       if (lightSampling_) lights_.Prefetch(u.light);
     }
     SurfaceHit hit;
-    bool found;
-    if (bounce == start.bounce && segment) {
-      found = segment->found;
-      if (found) hit = *segment->hit;
-    } else {
-      ++counters->rays;
-      found = tracer_.Intersect(origin, wi, kInf, &hit);
-    }
+    ++counters->rays;
+    const bool found = tracer_.Intersect(origin, wi, kInf, &hit);
 
     if constexpr (kMedium) {
       const double uChannel = sampler.Get1D();

@@ -28,13 +28,12 @@
 // is traced (LightSet::Prefetch), and left unused when there is no vertex: the order is the same.
 //
 // Without a medium, a call of at least kMinPacketSamples samples traces kChunk samples at a time
-// in two waves ahead of the rest of their paths: first the rays from the probe (each path's first
-// ray, each probe light sample's shadow ray), then the rays of each path's first scattering
-// vertex (its light sample's shadow ray and its continuation), as Embree packets: the probe's rays
-// sorted by direction, so that rays that share an origin and nearly a direction share most of
-// their BVH traversal, and the first vertices' rays in that same order, so that a packet's rays
-// start from neighbouring points. Only the grouping of rays into packets changes; each sample's
-// random numbers, rays and the order of the sum do not.
+// as waves of Embree packets: first the rays from the probe (each path's first ray, each probe
+// light sample's shadow ray), sorted by direction so that rays that share an origin and nearly a
+// direction share most of their BVH traversal; then, wave d for d = 1, 2, ..., the rays of every
+// path's vertex d (its light sample's shadow ray and its continuation), in the order of the wave
+// before, so that a packet's rays start from neighbouring points. Only the grouping of rays into
+// packets changes; each sample's random numbers, rays and the order of the sum do not.
 #pragma once
 
 #include <atomic>
@@ -128,19 +127,6 @@ class ProbeIntegrator {
   };
   template <typename S>
   static VertexNumbers DrawVertexNumbers(S& sampler);
-  // Where a path resumes: the ray of vertex `bounce` from origin (the previous vertex pPrev, whose
-  // surface normal is nPrev, nullptr at the probe or in the medium) along wi, drawn with pdf
-  // pdfDir, with the radiance gathered so far and the throughput beta.
-  struct PathStart {
-    Vec3f origin;
-    Vec3d pPrev;
-    const Vec3d* nPrev = nullptr;
-    Vec3d wi;
-    double pdfDir = 0;
-    Vec3d radiance;
-    Vec3d beta{1, 1, 1};
-    int bounce = 1;
-  };
   // A diffuse vertex once shaded, before its rays are traced.
   struct SurfaceVertex {
     Vec3d n;           // the shading normal, toward the side the path arrived from
@@ -157,19 +143,22 @@ class ProbeIntegrator {
     Vec3d wi;
     double pdfDir = 0;
   };
-  // A sample's first scattering vertex, traced ahead of its path (by sample).
-  struct FirstVertex {
-    Vec3d radiance;  // gathered up to the vertex (emission its ray found)
-    Vec3d beta;      // the continuation's throughput
-    Vec3d neeBase;   // the light sample's contribution is neeBase neeScale unless occluded
-    double neeScale = 0;
-    uint16_t shadowSlot = kNoRay;  // its light sample's shadow ray; kVisible: no ray needed
-    uint16_t nextSlot = kNoRay;    // the continuation's ray; kNoRay: the path ends at the vertex
-    // The continuation's PathStart (valid when nextSlot is not kNoRay) and light importance sum.
-    Vec3f spawn;
-    Vec3d p, n, wi;
+  // A path of the waves (TraceWaves) between two of them, by sample.
+  struct PathState {
+    Vec3d radiance;  // gathered so far
+    Vec3d beta;      // the throughput of its ray in flight
+    Vec3d wi;        // that ray's direction, drawn with pdf pdfDir
     double pdfDir = 0;
+    // The vertex the ray leaves: its point, its shading normal (none at the probe) and the sum of
+    // its light importance.
+    Vec3d pPrev, nPrev;
+    bool hasNormal = false;
     double total = 0;
+    // The light sample of the vertex just shaded: it adds neeBase neeScale unless its shadow ray
+    // (shadowSlot; kVisible: none needed, kNoRay: no sample) is occluded.
+    Vec3d neeBase;
+    double neeScale = 0;
+    uint16_t shadowSlot = kNoRay;
   };
 
   // A position in the samples of several batches run one after the other: sample `index` of
@@ -187,29 +176,29 @@ class ProbeIntegrator {
     size_t batch = 0;
     int64_t index = 0;
   };
-  // A chunk's rays from the probe and from its paths' first vertices, traced ahead of the paths
-  // (kMedium false only). "By sample": index j of sample c + j; "by slot": the ray's place in the
-  // packets.
+  // A chunk's samples traced as waves, ahead of the rest of their work (kMedium false only). "By
+  // sample": index j of sample c + j; "by slot": the ray's place in the packets of its wave.
   struct ProbeRays {
-    Vec3d wi[kChunk];              // by sample: the probe direction
-    uint16_t hitSlot[kChunk];      // by sample
-    bool found[kChunk];            // by slot: whether the first ray hit
-    SurfaceHit hit[kChunk];        // by slot: the hit, valid when found
-    LightSample light[kChunk];     // by sample: the light sample, when shadowSlot is not kNoRay
-    uint16_t shadowSlot[kChunk];   // by sample: kNoRay when no light was sampled, or kVisible
-    bool occluded[kChunk];         // by slot
-    VertexNumbers vertex[kChunk];  // by sample: the first vertex's random numbers
-    FirstVertex first[kChunk];     // by sample
-    bool firstOccluded[kChunk];    // by slot of FirstVertex::shadowSlot
-    bool nextFound[kChunk];        // by slot of FirstVertex::nextSlot
-    SurfaceHit nextHit[kChunk];    // by slot: valid when nextFound
-    // By sample: the first vertex's light importance (LightSet::ImportanceSize() entries each).
-    std::vector<double> importance;
-  };
-  // A path's ray traced ahead of it (its first, or its first vertex's continuation).
-  struct FirstSegment {
-    bool found = false;
-    const SurfaceHit* hit = nullptr;  // valid when found
+    Vec3d wi[kChunk];             // by sample: the probe direction
+    uint16_t hitSlot[kChunk];     // by sample
+    bool found[kChunk];           // by slot: whether the first ray hit
+    SurfaceHit hit[kChunk];       // by slot: the hit, valid when found
+    LightSample light[kChunk];    // by sample: the light sample, when shadowSlot is not kNoRay
+    uint16_t shadowSlot[kChunk];  // by sample: kNoRay when no light was sampled, or kVisible
+    bool occluded[kChunk];        // by slot
+    uint32_t batch[kChunk];       // by sample: its batch (index into the samplers) ...
+    int64_t index[kChunk];        // ... and its index there
+    // By sample: the random numbers of the vertex its ray in flight will find, and of the one
+    // after it when they were drawn together (one Sobol chunk holds two vertices' sets).
+    VertexNumbers vertex[kChunk];
+    VertexNumbers after[kChunk];
+    PathState path[kChunk];       // by sample
+    bool vertexOccluded[kChunk];  // by slot of PathState::shadowSlot
+    bool nextFound[kChunk];       // by slot of the wave's continuation rays
+    SurfaceHit nextHit[kChunk];   // by slot: valid when nextFound
+    // By sample: the light importance (LightSet::ImportanceSize() entries each) of the vertices
+    // of odd and even depth.
+    std::vector<double> importance[2];
   };
 
   template <bool kMedium, typename S>
@@ -224,18 +213,19 @@ class ProbeIntegrator {
   void TraceProbeRays(const Vec3f& origin, const Vec3d& p, std::span<const double> importance,
                       double total, std::span<S> samplers, SampleCursor cursor, int n,
                       ProbeRays* out, TraceCounters* counters) const;
-  // Fills out->first and the rays it refers to for the n samples whose rays from the probe at p
-  // (light importance `importance` summing to `total`, direction pdf pdfProbe) TraceProbeRays
-  // traced: shades each path's first vertex as TracePath would and traces its rays.
-  void TraceFirstVertices(const Vec3d& p, std::span<const double> importance, double total,
-                          double pdfProbe, int n, ProbeRays* out, TraceCounters* counters) const;
-  // The radiance arriving along the path from `start` on: start.radiance plus what the path
-  // gathers from vertex start.bounce on, with the sampler at that vertex's numbers (at the probe,
-  // start.bounce 1, past the probe's own). segment: the hit of the ray from start.origin, traced
-  // already, or nullptr to trace it here. importancePrev: the light importance at start.pPrev,
-  // summing to totalPrev (overwritten, as is scratch).
+  // Traces, as waves of packets, the n samples' paths on from the rays from the probe at p (light
+  // importance `importance` summing to `total`, direction pdf pdfProbe) that TraceProbeRays
+  // traced: wave d shades every path's vertex d as TracePath would and traces its rays, in the
+  // order of the wave before, so that a packet's rays start from neighbouring points. Leaves each
+  // path's radiance in out->path.
+  template <typename S>
+  void TraceWaves(const Vec3d& p, std::span<const double> importance, double total, double pdfProbe,
+                  std::span<S> samplers, int n, ProbeRays* out, TraceCounters* counters) const;
+  // The radiance arriving at `origin` (float; p the probe in double) along wi, drawn with pdf
+  // pdfDir: what the path from there gathers, with the sampler at its first vertex's numbers.
+  // importancePrev: the light importance at p, summing to totalPrev (overwritten, as is scratch).
   template <bool kMedium, typename S>
-  Vec3d TracePath(const PathStart& start, const FirstSegment* segment,
+  Vec3d TracePath(const Vec3f& origin, const Vec3d& p, const Vec3d& wi, double pdfDir,
                   std::span<double> importancePrev, double totalPrev, std::span<double> scratch,
                   S& sampler, TraceCounters* counters) const;
   // Adds to *radiance the emission that the ray from pPrev (normal nPrev, light importance
