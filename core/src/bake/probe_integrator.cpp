@@ -371,12 +371,15 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
     s.hasNormal = false;
     s.total = total;
   }
-  Vec3f shadowOrigin[kChunk], nextOrigin[kChunk];
-  Vec3d shadowDir[kChunk], nextDir[kChunk];
-  double shadowTMax[kChunk];
+  Vec3f shadowOrigin[kChunk], nextOrigin[kChunk], sortedOrigin[kChunk];
+  Vec3d shadowDir[kChunk], nextDir[kChunk], sortedDir[kChunk];
+  double shadowTMax[kChunk], sortedTMax[kChunk];
+  uint8_t shadowGroup[kChunk];
+  bool sortedOccluded[kChunk];
   const bool* found = out->found;
   const SurfaceHit* hits = out->hit;
   constexpr int kWidth = TracerScene::kPacketWidth;
+  constexpr int kShadowGroups = 4;
   for (int bounce = 1, count = n; count > 0; ++bounce) {
     double* importanceHere = out->importance[bounce & 1].data();
     const double* importanceBefore = out->importance[(bounce - 1) & 1].data();
@@ -400,6 +403,7 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
         ++counters->rays;  // counted as Unoccluded counts it, traced or not
         if (ShadowRay(v.spawn, v.ls, &shadowDir[shadowRays], &shadowTMax[shadowRays])) {
           shadowOrigin[shadowRays] = v.spawn;
+          shadowGroup[shadowRays] = uint8_t(v.ls.light % kShadowGroups);
           s.shadowSlot = uint16_t(shadowRays++);
         } else {
           s.shadowSlot = kVisible;
@@ -430,12 +434,26 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
       nextDir[nextRays] = v.wi;
       next[nextRays++] = uint16_t(j);
     }
+    // Packets of shadow rays by light (a stable counting sort of the wave's order): rays from
+    // neighbouring points to one light share most of their traversal.
+    int groupStart[kShadowGroups + 1] = {};
+    for (int r = 0; r < shadowRays; ++r) ++groupStart[shadowGroup[r] + 1];
+    for (int g = 0; g < kShadowGroups; ++g) groupStart[g + 1] += groupStart[g];
+    uint16_t sortedSlot[kChunk];
+    for (int r = 0; r < shadowRays; ++r) {
+      const int k = groupStart[shadowGroup[r]]++;
+      sortedSlot[r] = uint16_t(k);
+      sortedOrigin[k] = shadowOrigin[r];
+      sortedDir[k] = shadowDir[r];
+      sortedTMax[k] = shadowTMax[r];
+    }
     for (int k = 0; k < shadowRays; k += kWidth) {
       const size_t m = size_t(std::min(kWidth, shadowRays - k));
-      tracer_.OccludedPacket(std::span<const Vec3f>(shadowOrigin + k, m),
-                             std::span<const Vec3d>(shadowDir + k, m), shadowTMax + k,
-                             out->vertexOccluded + k);
+      tracer_.OccludedPacket(std::span<const Vec3f>(sortedOrigin + k, m),
+                             std::span<const Vec3d>(sortedDir + k, m), sortedTMax + k,
+                             sortedOccluded + k);
     }
+    for (int r = 0; r < shadowRays; ++r) out->vertexOccluded[r] = sortedOccluded[sortedSlot[r]];
     for (int k = 0; k < count; ++k) {
       PathState& s = out->path[active[k]];
       if (Reaches(s.shadowSlot, out->vertexOccluded)) {
