@@ -376,6 +376,10 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
   double shadowTMax[kChunk], sortedTMax[kChunk];
   uint8_t shadowGroup[kChunk];
   bool sortedOccluded[kChunk];
+  // By shadow ray: its path and its light sample's contribution, neeBase neeScale unless occluded.
+  uint16_t shadowPath[kChunk], sortedNee[kChunk];
+  Vec3d neeBase[kChunk];
+  double neeScale[kChunk];
   const bool* found = out->found;
   const SurfaceHit* hits = out->hit;
   constexpr int kWidth = TracerScene::kPacketWidth;
@@ -387,7 +391,6 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
     for (int k = 0; k < count; ++k) {
       const int j = active[k];
       PathState& s = out->path[j];
-      s.shadowSlot = kNoRay;
       const SurfaceHit& hit = hits[k];
       const std::span<const double> before =
           bounce == 1 ? importance : std::span<const double>(importanceBefore + j * size, size);
@@ -398,15 +401,17 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
       ShadeSurface(hit, s.wi, *albedo, out->vertex[j], bounce,
                    std::span<double>(importanceHere + j * size, size), &s.beta, &v);
       if (v.lightSampled) {
-        s.neeBase = v.neeBase;
-        s.neeScale = v.neeScale;
         ++counters->rays;  // counted as Unoccluded counts it, traced or not
         if (ShadowRay(v.spawn, v.ls, &shadowDir[shadowRays], &shadowTMax[shadowRays])) {
           shadowOrigin[shadowRays] = v.spawn;
           shadowGroup[shadowRays] = uint8_t(v.ls.light % kShadowGroups);
-          s.shadowSlot = uint16_t(shadowRays++);
+          shadowPath[shadowRays] = uint16_t(j);
+          neeBase[shadowRays] = v.neeBase;
+          neeScale[shadowRays++] = v.neeScale;
         } else {
-          s.shadowSlot = kVisible;
+          // Added after the vertex's emission and before the next vertex's, as TracePath adds it.
+          const Vec3d tr{1, 1, 1};
+          s.radiance += v.neeBase * tr * v.neeScale;
         }
       }
       if (!v.continues) continue;
@@ -439,13 +444,14 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
     int groupStart[kShadowGroups + 1] = {};
     for (int r = 0; r < shadowRays; ++r) ++groupStart[shadowGroup[r] + 1];
     for (int g = 0; g < kShadowGroups; ++g) groupStart[g + 1] += groupStart[g];
-    uint16_t sortedSlot[kChunk];
+    uint16_t sortedPath[kChunk];
     for (int r = 0; r < shadowRays; ++r) {
       const int k = groupStart[shadowGroup[r]]++;
-      sortedSlot[r] = uint16_t(k);
+      sortedPath[k] = shadowPath[r];
       sortedOrigin[k] = shadowOrigin[r];
       sortedDir[k] = shadowDir[r];
       sortedTMax[k] = shadowTMax[r];
+      sortedNee[k] = r;
     }
     for (int k = 0; k < shadowRays; k += kWidth) {
       const size_t m = size_t(std::min(kWidth, shadowRays - k));
@@ -453,13 +459,11 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
                              std::span<const Vec3d>(sortedDir + k, m), sortedTMax + k,
                              sortedOccluded + k);
     }
-    for (int r = 0; r < shadowRays; ++r) out->vertexOccluded[r] = sortedOccluded[sortedSlot[r]];
-    for (int k = 0; k < count; ++k) {
-      PathState& s = out->path[active[k]];
-      if (Reaches(s.shadowSlot, out->vertexOccluded)) {
-        const Vec3d tr{1, 1, 1};  // as TracePath adds it
-        s.radiance += s.neeBase * tr * s.neeScale;
-      }
+    for (int k = 0; k < shadowRays; ++k) {
+      if (sortedOccluded[k]) continue;
+      const int r = sortedNee[k];
+      const Vec3d tr{1, 1, 1};  // as TracePath adds it
+      out->path[sortedPath[k]].radiance += neeBase[r] * tr * neeScale[r];
     }
     // The hits just read are overwritten only now.
     for (int k = 0; k < nextRays; k += kWidth) {

@@ -154,11 +154,6 @@ class ProbeIntegrator {
     Vec3d pPrev, nPrev;
     bool hasNormal = false;
     double total = 0;
-    // The light sample of the vertex just shaded: it adds neeBase neeScale unless its shadow ray
-    // (shadowSlot; kVisible: none needed, kNoRay: no sample) is occluded.
-    Vec3d neeBase;
-    double neeScale = 0;
-    uint16_t shadowSlot = kNoRay;
   };
 
   // A position in the samples of several batches run one after the other: sample `index` of
@@ -193,7 +188,6 @@ class ProbeIntegrator {
     VertexNumbers vertex[kChunk];
     VertexNumbers after[kChunk];
     PathState path[kChunk];       // by sample
-    bool vertexOccluded[kChunk];  // by slot of PathState::shadowSlot
     bool nextFound[kChunk];       // by slot of the wave's continuation rays
     SurfaceHit nextHit[kChunk];   // by slot: valid when nextFound
     // By sample: the light importance (LightSet::ImportanceSize() entries each) of the vertices
