@@ -175,8 +175,8 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
   const double totalProbe = lights_.Importance(p, nullptr, /*includeDelta=*/false, importanceProbe);
   const double pdfProbe = UniformSpherePdf();
   const bool probeLightSample = lightSampling_ && totalProbe > 0;
-  // Without a medium, the rays from the probe and from the paths' first vertices are traced a
-  // chunk of samples at a time, as packets, before the rest of the chunk's paths.
+  // Without a medium, a chunk of samples at a time has its paths traced as waves of packets
+  // (TraceWaves) before its sums are added up.
   // One buffer per thread, kept: zeroing it (then 55 KB, now over 100 KB) anew for every call
   // took 0.5% of a bake's CPU samples (perf, memset).
   ProbeRays* probeRays = nullptr;
