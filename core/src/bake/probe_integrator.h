@@ -187,9 +187,9 @@ class ProbeIntegrator {
     // after it when they were drawn together (one Sobol chunk holds two vertices' sets).
     VertexNumbers vertex[kChunk];
     VertexNumbers after[kChunk];
-    PathState path[kChunk];       // by sample
-    bool nextFound[kChunk];       // by slot of the wave's continuation rays
-    SurfaceHit nextHit[kChunk];   // by slot: valid when nextFound
+    PathState path[kChunk];      // by sample
+    bool nextFound[kChunk];      // by slot of the wave's continuation rays
+    SurfaceHit nextHit[kChunk];  // by slot: valid when nextFound
     // By sample: the light importance (LightSet::ImportanceSize() entries each) of the vertices
     // of odd and even depth.
     std::vector<double> importance[2];
