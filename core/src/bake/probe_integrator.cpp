@@ -5,6 +5,7 @@
 #include <limits>
 #include <numbers>
 
+#include "probebake/base/check.h"
 #include "probebake/math/frame.h"
 #include "probebake/sampling/hash.h"
 #include "probebake/sampling/sampler.h"
@@ -55,6 +56,22 @@ uint32_t MortonInterleave(uint32_t x, uint32_t y) {
     return v;
   };
   return spread(x) | (spread(y) << 1);
+}
+
+// A stable counting sort of n elements by key, for packing rays into packets: slot[i] becomes
+// element i's place among the elements whose key is below `buckets`, in the order of their keys
+// (ties in the order of i); an element with any other key (a marker) gets that key as its slot.
+// Returns the number of elements placed. Precondition: buckets <= 256.
+int SortSlots(const uint16_t* keys, int n, int buckets, uint16_t* slot) {
+  PB_DCHECK(buckets <= 256);
+  int start[257] = {};
+  for (int i = 0; i < n; ++i) {
+    if (keys[i] < buckets) ++start[keys[i] + 1];
+  }
+  for (int b = 0; b < buckets; ++b) start[b + 1] += start[b];
+  const int placed = start[buckets];
+  for (int i = 0; i < n; ++i) slot[i] = keys[i] < buckets ? uint16_t(start[keys[i]]++) : keys[i];
+  return placed;
 }
 
 }  // namespace
@@ -270,8 +287,8 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
   static_assert(kChunk <= kVisible, "slots never meet the markers");
   // shadowCell is a sample's bucket, or kNoRay / kVisible when it has no shadow ray to trace.
   const bool lightSample = lightSampling_ && total > 0;
-  uint16_t hitCell[kChunk], shadowCell[kChunk];
-  int hitStart[kChunk + 1] = {}, shadowStart[kChunk + 1] = {};
+  // Zeroed only because GCC cannot see that the loop below sets the n entries SortSlots reads.
+  uint16_t hitCell[kChunk] = {}, shadowCell[kChunk] = {};
   Vec3d shadowDir[kChunk];
   double shadowTMax[kChunk];
   const auto cellIndex = [](double x) {  // x in [0, 1]
@@ -288,7 +305,6 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
     out->vertex[j] = DrawVertexNumbers(sampler);
     out->wi[j] = SampleUniformSphere(uDirection);
     hitCell[j] = uint16_t(MortonInterleave(cellIndex(uDirection.x), cellIndex(uDirection.y)));
-    ++hitStart[hitCell[j] + 1];
 
     shadowCell[j] = kNoRay;
     if (!lightSample) continue;
@@ -312,16 +328,11 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
     constexpr uint32_t kLightGroups = 4;  // 4 x 2^(2 kHalf) = kChunk buckets
     const uint32_t cx = cellIndex(0.5 * (ox + 1)) >> 1, cy = cellIndex(0.5 * (oy + 1)) >> 1;
     shadowCell[j] = uint16_t(((ls.light % kLightGroups) << (2 * kHalf)) | MortonInterleave(cx, cy));
-    ++shadowStart[shadowCell[j] + 1];
   }
 
-  for (int c = 0; c < kChunk; ++c) hitStart[c + 1] += hitStart[c];
+  SortSlots(hitCell, n, kChunk, out->hitSlot);
   Vec3d sortedDir[kChunk];
-  for (int j = 0; j < n; ++j) {
-    const int k = hitStart[hitCell[j]]++;
-    out->hitSlot[j] = uint16_t(k);
-    sortedDir[k] = out->wi[j];
-  }
+  for (int j = 0; j < n; ++j) sortedDir[out->hitSlot[j]] = out->wi[j];
   constexpr int kWidth = TracerScene::kPacketWidth;
   for (int k = 0; k < n; k += kWidth) {
     const int m = std::min(kWidth, n - k);
@@ -331,18 +342,13 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
   counters->rays += n;
   if (!lightSample) return;
 
-  for (int c = 0; c < kChunk; ++c) shadowStart[c + 1] += shadowStart[c];
-  const int rays = shadowStart[kChunk];
+  const int rays = SortSlots(shadowCell, n, kChunk, out->shadowSlot);
   double sortedTMax[kChunk];
   for (int j = 0; j < n; ++j) {
-    if (shadowCell[j] == kNoRay || shadowCell[j] == kVisible) {
-      out->shadowSlot[j] = shadowCell[j];
-    } else {
-      const int k = shadowStart[shadowCell[j]]++;
-      out->shadowSlot[j] = uint16_t(k);
-      sortedDir[k] = shadowDir[j];
-      sortedTMax[k] = shadowTMax[j];
-    }
+    const uint16_t k = out->shadowSlot[j];
+    if (k == kNoRay || k == kVisible) continue;
+    sortedDir[k] = shadowDir[j];
+    sortedTMax[k] = shadowTMax[j];
   }
   for (int k = 0; k < rays; k += kWidth) {
     const int m = std::min(kWidth, rays - k);
@@ -374,10 +380,10 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
   Vec3f shadowOrigin[kChunk], nextOrigin[kChunk], sortedOrigin[kChunk];
   Vec3d shadowDir[kChunk], nextDir[kChunk], sortedDir[kChunk];
   double shadowTMax[kChunk], sortedTMax[kChunk];
-  uint8_t shadowGroup[kChunk];
+  uint16_t shadowGroup[kChunk], shadowSlot[kChunk];
   bool sortedOccluded[kChunk];
   // By shadow ray: its path and its light sample's contribution, neeBase neeScale unless occluded.
-  uint16_t shadowPath[kChunk], sortedNee[kChunk];
+  uint16_t shadowPath[kChunk];
   Vec3d neeBase[kChunk];
   double neeScale[kChunk];
   const bool* found = out->found;
@@ -404,7 +410,7 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
         ++counters->rays;  // counted as Unoccluded counts it, traced or not
         if (ShadowRay(v.spawn, v.ls, &shadowDir[shadowRays], &shadowTMax[shadowRays])) {
           shadowOrigin[shadowRays] = v.spawn;
-          shadowGroup[shadowRays] = uint8_t(v.ls.light % kShadowGroups);
+          shadowGroup[shadowRays] = uint16_t(v.ls.light % kShadowGroups);
           shadowPath[shadowRays] = uint16_t(j);
           neeBase[shadowRays] = v.neeBase;
           neeScale[shadowRays++] = v.neeScale;
@@ -441,17 +447,12 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
     }
     // Packets of shadow rays by light (a stable counting sort of the wave's order): rays from
     // neighbouring points to one light share most of their traversal.
-    int groupStart[kShadowGroups + 1] = {};
-    for (int r = 0; r < shadowRays; ++r) ++groupStart[shadowGroup[r] + 1];
-    for (int g = 0; g < kShadowGroups; ++g) groupStart[g + 1] += groupStart[g];
-    uint16_t sortedPath[kChunk];
+    SortSlots(shadowGroup, shadowRays, kShadowGroups, shadowSlot);
     for (int r = 0; r < shadowRays; ++r) {
-      const int k = groupStart[shadowGroup[r]]++;
-      sortedPath[k] = shadowPath[r];
+      const int k = shadowSlot[r];
       sortedOrigin[k] = shadowOrigin[r];
       sortedDir[k] = shadowDir[r];
       sortedTMax[k] = shadowTMax[r];
-      sortedNee[k] = r;
     }
     for (int k = 0; k < shadowRays; k += kWidth) {
       const size_t m = size_t(std::min(kWidth, shadowRays - k));
@@ -459,11 +460,10 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
                              std::span<const Vec3d>(sortedDir + k, m), sortedTMax + k,
                              sortedOccluded + k);
     }
-    for (int k = 0; k < shadowRays; ++k) {
-      if (sortedOccluded[k]) continue;
-      const int r = sortedNee[k];
+    for (int r = 0; r < shadowRays; ++r) {
+      if (sortedOccluded[shadowSlot[r]]) continue;
       const Vec3d tr{1, 1, 1};  // as TracePath adds it
-      out->path[sortedPath[k]].radiance += neeBase[r] * tr * neeScale[r];
+      out->path[shadowPath[r]].radiance += neeBase[r] * tr * neeScale[r];
     }
     // The hits just read are overwritten only now.
     for (int k = 0; k < nextRays; k += kWidth) {
