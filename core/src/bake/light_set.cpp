@@ -272,7 +272,8 @@ bool LightSet::HasEmission(bool delta) const {
   return false;
 }
 
-double LightSet::LightImportance(const LightData& l, const Vec3d& p, const Vec3d* n) const {
+[[gnu::always_inline]] inline double LightSet::LightImportance(const LightData& l, const Vec3d& p,
+                                                               const Vec3d* n) const {
   if (l.power <= 0) return 0;
   switch (l.kind) {
     case Kind::kPoint:
@@ -331,8 +332,23 @@ double LightSet::Importance(const Vec3d& p, const Vec3d* n, bool includeDelta,
                             std::span<double> importance) const {
   PB_DCHECK_EQ(importance.size(), slots_.size());
   double total = 0;
-  const auto leaf = [&](uint32_t light) { return LightImportance(lights_[light], p, n); };
   const float* factor = visibility_.At(p);  // nullptr: no table, or p outside it
+  if (trees_.empty()) {
+    // Every slot is the light of its index (BuildTrees): a lean loop without the slots' and
+    // trees' indirections, LightImportance inlined. A third fewer instructions than the general
+    // loop below in the demo room (callgrind), same results.
+    const LightData* lights = lights_.data();
+    double* out = importance.data();
+    const size_t count = lights_.size();
+    for (size_t s = 0; s < count; ++s) {
+      double w = !includeDelta && IsDelta(lights[s].kind) ? 0.0 : LightImportance(lights[s], p, n);
+      if (factor) w *= factor[s];
+      out[s] = w;
+      total += w;
+    }
+    return total;
+  }
+  const auto leaf = [&](uint32_t light) { return LightImportance(lights_[light], p, n); };
   for (size_t s = 0; s < slots_.size(); ++s) {
     const Slot& slot = slots_[s];
     if (slot.delta && !includeDelta) {
@@ -571,6 +587,7 @@ bool LightSet::EvalDelta(uint32_t index, const Vec3d& p, LightSample* s) const {
   s->wi = v / d;
   s->distance = d;
   s->point = l.position;
+  s->vertexScale = 0;  // a point, not a surface: set, as callers may reuse *s
   double falloff = 1;
   if (l.kind == Kind::kSpot) falloff = SpotFalloff(l, -s->wi);
   if (falloff <= 0) return false;
