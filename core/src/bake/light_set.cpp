@@ -65,6 +65,7 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer, size_t treeMin
         l.sin2Outer = sin2;
         l.sinOuter = std::sqrt(sin2);
         l.radiance = d->irradiance / (kPi * sin2);
+        l.frame = Framed::FromZ(l.axis);
       }
     } else if (const auto* r = std::get_if<RectLight>(&light)) {
       l.kind = Kind::kRect;
@@ -90,6 +91,7 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer, size_t treeMin
       l.kind = Kind::kDisk;
       l.position = k->center - offset;
       l.axis = k->normal;
+      l.frame = Framed::FromZ(l.axis);
       l.radius = k->radius;
       l.area = kPi * k->radius * k->radius;
       l.radiance = k->radiance;
@@ -391,7 +393,14 @@ double LightSet::SelectionPmf(uint32_t light, const Vec3d& p, const Vec3d* n,
 }
 
 bool LightSet::Choose(const Vec3d& p, const Vec3d* n, std::span<const double> importance,
-                      double total, double uSelect, uint32_t* light, double* pmfOut) const {
+                      double total, double uSelect, uint32_t* light, double* pmf) const {
+  return ChooseInline(p, n, importance, total, uSelect, light, pmf);
+}
+
+[[gnu::always_inline]] inline bool LightSet::ChooseInline(const Vec3d& p, const Vec3d* n,
+                                                          std::span<const double> importance,
+                                                          double total, double uSelect,
+                                                          uint32_t* light, double* pmfOut) const {
   if (!(total > 0)) return false;
   // Linear scan: the importance array is rebuilt at every vertex anyway.
   const double target = uSelect * total;
@@ -423,7 +432,7 @@ bool LightSet::Sample(const Vec3d& p, const Vec3d* n, std::span<const double> im
                       double total, double uSelect, const Vec2d& u, LightSample* sample) const {
   uint32_t light;
   double pmf;
-  if (!Choose(p, n, importance, total, uSelect, &light, &pmf)) return false;
+  if (!ChooseInline(p, n, importance, total, uSelect, &light, &pmf)) return false;
   if (!SampleOne(lights_[light], light, p, n, u, sample)) return false;
   sample->pdf *= pmf;
   sample->light = light;
@@ -488,7 +497,7 @@ bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, con
       return EvalDelta(index, p, s);
     case Kind::kSun: {
       const Vec3d local = SampleUniformCone(u, l.cosOuter);
-      s->wi = Framed::FromZ(l.axis).FromLocal(local);
+      s->wi = l.frame.FromLocal(local);
       s->distance = kInf;
       s->radiance = l.radiance;
       s->pdf = UniformConePdf(l.cosOuter);
@@ -508,8 +517,7 @@ bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, con
         q = SampleUniformParallelogram(u, l.position, l.edge1, l.edge2);
       } else {
         const Vec2d d = SampleUniformDiskConcentric(u);
-        const Framed f = Framed::FromZ(l.axis);
-        q = l.position + (f.s * d.x + f.t * d.y) * l.radius;
+        q = l.position + (l.frame.s * d.x + l.frame.t * d.y) * l.radius;
       }
       return FinishAreaSample(l, p, q, 0, s);
     }

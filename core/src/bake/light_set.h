@@ -36,6 +36,7 @@
 #include "environment_light.h"
 #include "light_tree.h"
 #include "light_visibility.h"
+#include "probebake/math/frame.h"
 #include "probebake/math/vec3.h"
 #include "probebake/scene/scene.h"
 #include "tracer_scene.h"
@@ -169,6 +170,7 @@ class LightSet {
                      // directional: irradiance; mesh: emission
     Vec3d position;  // point/spot; rect corner; disk/sphere centre; mesh bounds centre
     Vec3d axis;      // spot: travel direction; directional/sun: toward the light; rect/disk: normal
+    Framed frame;    // sun, disk: Framed::FromZ(axis), built once rather than per sample
     Vec3d edge1, edge2;                  // rect
     Vec3d corners[4];                    // rect: position, +edge1, +edge1+edge2, +edge2
     Vec3d centre;                        // rect
@@ -186,6 +188,9 @@ class LightSet {
   };
 
   double LightImportance(const LightData& l, const Vec3d& p, const Vec3d* n) const;
+  // Choose's body, inlined into Sample.
+  bool ChooseInline(const Vec3d& p, const Vec3d* n, std::span<const double> importance,
+                    double total, double uSelect, uint32_t* light, double* pmf) const;
   void BuildTrees(size_t treeMinLights);
   bool SampleOne(const LightData& l, uint32_t index, const Vec3d& p, const Vec3d* n, const Vec2d& u,
                  LightSample* s) const;

@@ -374,12 +374,15 @@ void TracerScene::FillHit(uint32_t geomID, uint32_t primID, float u, float v, co
     // Interpolated in double: the point lies on the float triangle's plane to ~1e-16 of the
     // vertex magnitudes (a float interpolation would leave it ulps of those magnitudes off it).
     const double bu = u, bw = v, b0 = 1 - bu - bw;
-    double scale = 0;
-    for (int k = 0; k < 3; ++k) {
-      const float a = verts[3 * idx[0] + k], b = verts[3 * idx[1] + k], c = verts[3 * idx[2] + k];
-      hit->p[k] = b0 * a + bu * b + bw * c;
-      scale = std::max({scale, double(std::fabs(a)), double(std::fabs(b)), double(std::fabs(c))});
-    }
+    const float* a = verts + 3 * idx[0];
+    const float* b = verts + 3 * idx[1];
+    const float* c = verts + 3 * idx[2];
+    hit->p = {b0 * a[0] + bu * b[0] + bw * c[0], b0 * a[1] + bu * b[1] + bw * c[1],
+              b0 * a[2] + bu * b[2] + bw * c[2]};
+    // The largest in float, converted once: the same value (conversion to double is exact).
+    float scale = 0;
+    for (int k = 0; k < 3; ++k)
+      scale = std::max({scale, std::fabs(a[k]), std::fabs(b[k]), std::fabs(c[k])});
     hit->vertexScale = scale;
     // Embree's geometric normal, (v1 - v0) x (v2 - v0) like ours: no table lookup (a cache miss
     // per hit in large scenes).
