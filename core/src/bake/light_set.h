@@ -123,6 +123,11 @@ class LightSet {
     if (environment_) environment_->Prefetch(u);
   }
 
+  // Whether EvalSurfaceHit can find emission at `hit`: false for the surface of a mesh that does
+  // not emit (most hits), cheaply, so that callers skip the call.
+  bool MayEmit(const SurfaceHit& hit) const {
+    return hit.kind != SurfaceKind::kMesh || meshLight_[hit.index] != UINT32_MAX;
+  }
   // A ray from p (normal n as above, importance as computed there) along wi hit `hit`: the
   // emitted radiance toward p and NEE's pdf of that direction. False if the surface hit emits
   // nothing (not a light, or its back side).

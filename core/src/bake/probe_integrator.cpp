@@ -496,7 +496,7 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
     }
     return nullptr;
   }
-  if (countEmission_) {
+  if (countEmission_ && lights_.MayEmit(hit)) {
     LightHit h;
     if (lights_.EvalSurfaceHit(pPrev, nPrev, importancePrev, totalPrev, wi, hit, &h)) {
       const double w = mis_ ? PowerHeuristic(pdfDir, h.pdf) : 1.0;
