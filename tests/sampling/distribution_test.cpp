@@ -118,6 +118,37 @@ TEST(DiscreteDistribution, InvertsSample) {
   }
 }
 
+// Sample's search against the definition: the index is the last one of positive weight whose
+// interval starts at or below u (Invert(i, 0) is that start exactly). The tables mix sizes from 1
+// up and runs of tiny and zero weights beside large ones, so the guide's ranges take every length
+// from 0 to past the counted window, and windows run past the last entry.
+TEST(DiscreteDistribution, SampleFindsTheIntervalOfU) {
+  std::vector<std::vector<double>> tables;
+  for (int n = 1; n <= 12; ++n) tables.push_back(RandomWeights(n, 100 + n, 0.3));
+  for (int run = 1; run <= 20; ++run) {
+    std::vector<double> w;
+    for (int k = 0; k < 6; ++k) {
+      w.push_back(1.0);
+      for (int t = 0; t < run; ++t) w.push_back(t % 3 == 2 ? 0.0 : 1e-3 * (t + 1));
+    }
+    tables.push_back(w);
+  }
+  IndependentSampler s(25, 0);
+  for (size_t t = 0; t < tables.size(); ++t) {
+    const std::vector<double>& w = tables[t];
+    const DiscreteDistribution d(w);
+    for (int k = 0; k < 4096; ++k) {
+      s.StartSample(k);
+      const double u = k < 2048 ? k / 2048.0 : s.Get1D();
+      int64_t expected = -1;
+      for (int64_t i = 0; i < d.Size(); ++i) {
+        if (d.Pmf(i) > 0 && d.Invert(i, 0) <= u) expected = i;
+      }
+      ASSERT_EQ(d.Sample(u).index, expected) << "table " << t << ", u = " << u;
+    }
+  }
+}
+
 TEST(DiscreteDistribution, ZeroWeightsAreNeverSampled) {
   // Sweep u over a fine deterministic grid; zero-weight indices, including leading, trailing and
   // consecutive ones, must never come out.

@@ -153,7 +153,10 @@ void BM_PiecewiseConstant2DSample(benchmark::State& state) {
   }
   state.SetItemsProcessed(state.iterations());
 }
-BENCHMARK(BM_PiecewiseConstant2DSample)->Args({1024, 512, 0})->Args({128, 64, 1});
+BENCHMARK(BM_PiecewiseConstant2DSample)
+    ->Args({1024, 512, 0})
+    ->Args({128, 64, 1})
+    ->Args({2048, 1024, 1});
 
 }  // namespace
 }  // namespace probebake

@@ -17,6 +17,7 @@ DiscreteDistribution::DiscreteDistribution(std::span<const double> weights) {
   // Prefix sums with Neumaier's compensation: prefix[i] = sum + comp carries the rounding error of
   // every addition, so a 1e-6 weight added after a 1e9 one still counts (plain summation would
   // round it to a multiple of ulp(1e9) ~ 1.2e-7).
+  size_ = static_cast<int64_t>(n);
   cdf_.resize(n + 1);
   cdf_[0] = 0;
   double sum = 0, comp = 0;
@@ -63,10 +64,9 @@ DiscreteDistribution::DiscreteDistribution(std::span<const double> weights) {
     guide_[b] = static_cast<uint32_t>(i);
   }
   guide_[n] = static_cast<uint32_t>(n - 1);
+  // Above every u, so a search window that runs past cdf_[n] counts none of them.
+  cdf_.resize(n + 1 + kLinearSearchMax, 2.0);
 }
-
-// Guide ranges up to this long are counted, longer ones binary-searched.
-constexpr int64_t kLinearSearchMax = 8;
 
 DiscreteSample DiscreteDistribution::Sample(double u) const {
   PB_DCHECK(u >= 0 && u < 1);
@@ -74,12 +74,22 @@ DiscreteSample DiscreteDistribution::Sample(double u) const {
   // Smallest i in [guide_[b], guide_[b+1]] with cdf_[i + 1] > u; then cdf_[i] <= u. The CDF
   // is monotone, so i - guide_[b] counts the entries of the range at or below u: counted without
   // branches over short ranges, where a binary search's few branches mispredict half the time,
-  // searched over long ones.
+  // searched over long ones. The count runs over a fixed window from lo + 1 (4 or 8 entries): its
+  // entries past hi lie beyond i + 1, above u (the padding too), and add nothing, so i is that of
+  // a count to hi, without the loop exit that mispredicted with the range's length. A 128 x 64
+  // sky's 2D sample took 26.6 ns before, 16.4 ns after (probebake_sampling_bench; 2048 x 1024:
+  // 87 -> 82 ns; 10^6 log-uniform weights over 15 decades, mostly empty ranges: 21 -> 24 ns).
   const int64_t lo = guide_[b], hi = guide_[b + 1];
   int64_t i;
   if (hi - lo <= kLinearSearchMax) {
-    i = lo;
-    for (int64_t k = lo + 1; k <= hi; ++k) i += cdf_[k] <= u;
+    const double* window = cdf_.data() + lo + 1;
+    int64_t below = 0;
+    if (hi - lo <= kLinearSearchMax / 2) {
+      for (int k = 0; k < kLinearSearchMax / 2; ++k) below += window[k] <= u;
+    } else {
+      for (int k = 0; k < kLinearSearchMax; ++k) below += window[k] <= u;
+    }
+    i = lo + below;
   } else {
     i = (std::upper_bound(cdf_.data() + lo + 1, cdf_.data() + hi + 2, u) - cdf_.data()) - 1;
   }

@@ -46,7 +46,7 @@ class DiscreteDistribution {
  public:
   explicit DiscreteDistribution(std::span<const double> weights);
 
-  int64_t Size() const { return static_cast<int64_t>(cdf_.size()) - 1; }
+  int64_t Size() const { return size_; }
   // Compensated sum of the weights; 0 exactly when all weights are 0.
   double Total() const { return total_; }
 
@@ -66,7 +66,11 @@ class DiscreteDistribution {
   double Invert(int64_t index, double uRemapped) const;
 
  private:
-  std::vector<double> cdf_;      // n + 1 entries, cdf_[0] = 0, cdf_[n] = 1
+  // Guide ranges up to this long are searched by counting over a fixed window of this many CDF
+  // entries (no branch on the range's length, which mispredicts), longer ones binary-searched.
+  static constexpr int kLinearSearchMax = 8;
+  int64_t size_ = 0;             // n
+  std::vector<double> cdf_;      // cdf_[0] = 0 ... cdf_[n] = 1, then kLinearSearchMax entries of 2
   std::vector<uint32_t> guide_;  // guide_[b]: first i with Bucket(cdf_[i + 1]) >= b; n + 1 entries
   double total_ = 0;
 
