@@ -144,6 +144,25 @@ TEST(Sampler, IndependentStartsAtASet) {
   ExpectStartAtASet<IndependentSampler>();
 }
 
+// GetChunk after a restart at any set (inside the cached seeds and past them) gives what
+// kSobolChunk Get2D calls give, and the calls after it go on from the next chunk.
+TEST(Sampler, SobolChunkAtOnceEqualsTheCalls) {
+  for (uint64_t index : {0u, 5u, 1000u}) {
+    for (uint64_t first : {0u, 3u, 7u, 41u, 47u, 60u}) {
+      SobolSampler calls(3, 8), chunk(3, 8);
+      calls.StartSample(index, first);
+      chunk.StartSample(index, first);
+      const uint32_t *x, *y;
+      chunk.GetChunk(&x, &y);
+      for (int k = 0; k < kSobolChunk; ++k) {
+        ASSERT_EQ(calls.Get2D(), (Vec2d{U32ToUnit(x[k]), U32ToUnit(y[k])}))
+            << "index " << index << ", first set " << first << ", set " << first + k;
+      }
+      ASSERT_EQ(calls.Get2D(), chunk.Get2D()) << "index " << index << ", first set " << first;
+    }
+  }
+}
+
 TEST(Sampler, SobolIsDeterministic) {
   ExpectDeterministic<SobolSampler>();
 }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <numbers>
+#include <type_traits>
 
 #include "probebake/base/check.h"
 #include "probebake/math/frame.h"
@@ -85,6 +86,26 @@ template <typename S>
   v.next = sampler.Get2D();
   v.roulette = sampler.Get1D();
   return v;
+}
+
+template <typename S>
+[[gnu::always_inline]] inline void ProbeIntegrator::DrawTwoVertices(S& sampler, VertexNumbers* a,
+                                                                    VertexNumbers* b) {
+  if constexpr (std::is_same_v<S, SobolSampler>) {
+    static_assert(kSobolChunk == 2 * kVertexSets);
+    const uint32_t *x, *y;
+    sampler.GetChunk(&x, &y);
+    for (VertexNumbers* v : {a, b}) {
+      v->select = U32ToUnit(x[0]);
+      v->light = {U32ToUnit(x[1]), U32ToUnit(y[1])};
+      v->next = {U32ToUnit(x[2]), U32ToUnit(y[2])};
+      v->roulette = U32ToUnit(x[3]);
+      x += kVertexSets, y += kVertexSets;
+    }
+  } else {
+    *a = DrawVertexNumbers(sampler);
+    *b = DrawVertexNumbers(sampler);
+  }
 }
 
 ProbeIntegrator::ProbeIntegrator(const Scene& scene, const TracerScene& tracer,
@@ -438,8 +459,7 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
       if ((bounce + 1) % 2 == 0) {
         S& sampler = samplers[out->batch[j]];
         sampler.StartSample(uint64_t(out->index[j]), kProbeSets + uint64_t(bounce) * kVertexSets);
-        out->vertex[j] = DrawVertexNumbers(sampler);
-        out->after[j] = DrawVertexNumbers(sampler);
+        DrawTwoVertices(sampler, &out->vertex[j], &out->after[j]);
       } else {
         out->vertex[j] = out->after[j];
       }

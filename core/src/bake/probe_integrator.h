@@ -127,6 +127,10 @@ class ProbeIntegrator {
   };
   template <typename S>
   static VertexNumbers DrawVertexNumbers(S& sampler);
+  // Two vertices' numbers, *a's then *b's, as two DrawVertexNumbers calls right after a restart
+  // (one Sobol chunk, taken at once).
+  template <typename S>
+  static void DrawTwoVertices(S& sampler, VertexNumbers* a, VertexNumbers* b);
   // A diffuse vertex once shaded, before its rays are traced.
   struct SurfaceVertex {
     Vec3d n;           // the shading normal, toward the side the path arrived from

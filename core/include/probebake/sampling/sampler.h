@@ -73,6 +73,17 @@ class SobolSampler {
     return {U32ToUnit(x_[j]), U32ToUnit(y_[j])};
   }
 
+  // Right after StartSample: the next kSobolChunk sets at once, as 32-bit fixed point (*x and *y
+  // point at kSobolChunk values each; set k is what the k-th Get2D call would return, its x alone
+  // what Get1D would). Consumes them, without the per-call bookkeeping.
+  void GetChunk(const uint32_t** x, const uint32_t** y) {
+    PB_DCHECK(dimension_ == chunkEnd_);
+    FillChunk();
+    dimension_ = chunkEnd_;
+    *x = x_;
+    *y = y_;
+  }
+
  private:
   // The current dimension set's lane in the chunk of precomputed sets, then advance d. Sets are
   // computed kSobolChunk at a time (sobol_chunk.h, in SIMD); a path that ends mid-chunk wastes
