@@ -66,8 +66,9 @@ class DiscreteDistribution {
   double Invert(int64_t index, double uRemapped) const;
 
  private:
-  // Guide ranges up to this long are searched by counting over a fixed window of this many CDF
-  // entries (no branch on the range's length, which mispredicts), longer ones binary-searched.
+  // Guide ranges up to this long are searched by counting over a fixed window of half or all of
+  // this many CDF entries (not a loop over the range, whose exit mispredicts), longer ones
+  // binary-searched.
   static constexpr int kLinearSearchMax = 8;
   int64_t size_ = 0;             // n
   std::vector<double> cdf_;      // cdf_[0] = 0 ... cdf_[n] = 1, then kLinearSearchMax entries of 2
