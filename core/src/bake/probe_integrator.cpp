@@ -93,15 +93,24 @@ template <typename S>
                                                                     VertexNumbers* b) {
   if constexpr (std::is_same_v<S, SobolSampler>) {
     static_assert(kSobolChunk == 2 * kVertexSets);
-    const uint32_t *x, *y;
-    sampler.GetChunk(&x, &y);
-    for (VertexNumbers* v : {a, b}) {
-      v->select = U32ToUnit(x[0]);
-      v->light = {U32ToUnit(x[1]), U32ToUnit(y[1])};
-      v->next = {U32ToUnit(x[2]), U32ToUnit(y[2])};
-      v->roulette = U32ToUnit(x[3]);
-      x += kVertexSets, y += kVertexSets;
-    }
+    // The chunk read set by set, as the sampler's own calls would, so that DrawVertexNumbers
+    // alone says which set holds which number.
+    struct ChunkReader {
+      const uint32_t *x, *y;
+      double Get1D() {
+        const double u = U32ToUnit(*x);
+        ++x, ++y;  // a Get1D call uses its set's x alone
+        return u;
+      }
+      Vec2d Get2D() {
+        const Vec2d u{U32ToUnit(*x), U32ToUnit(*y)};
+        ++x, ++y;
+        return u;
+      }
+    } chunk;
+    sampler.GetChunk(&chunk.x, &chunk.y);
+    *a = DrawVertexNumbers(chunk);
+    *b = DrawVertexNumbers(chunk);
   } else {
     *a = DrawVertexNumbers(sampler);
     *b = DrawVertexNumbers(sampler);
