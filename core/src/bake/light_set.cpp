@@ -451,7 +451,7 @@ bool FinishAreaSampleImpl(const Vec3d& axis, double area, bool twoSided, const V
   const double d2 = LengthSquared(v);
   if (!(d2 > 0)) return false;
   const double d = std::sqrt(d2);
-  s->wi = v / d;
+  s->wi = v * (1 / d);
   const double cosLight = -Dot(s->wi, axis);
   if ((cosLight <= 0 && !twoSided) || cosLight == 0) return false;
   s->distance = d;
@@ -556,7 +556,7 @@ bool LightSet::SampleOne(const LightData& l, uint32_t index, const Vec3d& p, con
       const double d2 = LengthSquared(v);
       if (!(d2 > 0)) return false;
       const double d = std::sqrt(d2);
-      s->wi = v / d;
+      s->wi = v * (1 / d);
       const Vec3d ng = Vec3d(tracer_->TriangleNormal(l.mesh, uint32_t(t)));
       const double cosLight = -Dot(s->wi, ng);
       if (cosLight <= 0) return false;  // emissive triangles emit from their front side only
@@ -592,7 +592,7 @@ bool LightSet::EvalDelta(uint32_t index, const Vec3d& p, LightSample* s) const {
   const double d2 = LengthSquared(v);
   if (!(d2 > 0)) return false;
   const double d = std::sqrt(d2);
-  s->wi = v / d;
+  s->wi = v * (1 / d);
   s->distance = d;
   s->point = l.position;
   s->vertexScale = 0;  // a point, not a surface: set, as callers may reuse *s

@@ -6,6 +6,7 @@
 #include <numbers>
 #include <type_traits>
 
+#include "power_heuristic.h"
 #include "probebake/base/check.h"
 #include "probebake/math/frame.h"
 #include "probebake/sampling/hash.h"
@@ -30,20 +31,6 @@ void Project(int order, const Vec3d& w, const Vec3d& value, std::span<double> su
     sum[3 * i + 1] += y[i] * value.y;
     sum[3 * i + 2] += y[i] * value.z;
   }
-}
-
-// Veach's power heuristic with exponent 2, w_a = p_a^2 / (p_a^2 + p_b^2), written as 1 / (1 +
-// (p_b / p_a)^2) so that squares of tiny or huge pdfs neither underflow nor overflow (p_a = 0
-// gives 0, p_a = inf gives 1). Against the balance heuristic p_a / (p_a + p_b) it moves weight to
-// whichever technique is the likelier there, so less of the estimate rides on the other's rare
-// samples (uniform directions that happen to hit a small light), a discontinuous integrand that
-// Sobol points stratify poorly. The bench at 4096 samples per probe (one thread, equal time)
-// measured the mean irradiance error with Sobol: the closed-form sky and sphere light 0.374% ->
-// 0.152% (5.7x less time to equal error), the demo room 2.86% -> 2.82%, the courtyard 1.75% ->
-// 1.71%; with independent numbers 1.04% -> 1.12%, 3.84% -> 3.81% and 2.64% -> 2.65%.
-double PowerHeuristic(double pdfA, double pdfB) {
-  const double r = pdfB / pdfA;
-  return 1 / (1 + r * r);
 }
 
 // The 16-bit x and y interleaved, x in the even places: the cell's index along a Morton (Z-order)
@@ -154,7 +141,7 @@ bool ProbeIntegrator::ShadowRay(const Vec3f& origin, const LightSample& s, Vec3d
   const double d = Length(v);
   const double maxAbs = std::max({MaxComponent(Abs(o)), MaxComponent(Abs(s.point)), s.vertexScale});
   *tMax = d - FloatSlack(maxAbs);
-  *dir = d > 0 ? v / d : s.wi;
+  *dir = d > 0 ? v * (1 / d) : s.wi;
   return *tMax > 0;
 }
 
@@ -280,8 +267,8 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
       if (probeLightSample) {
         const auto add = [&](const LightSample& ls, const Vec3d& tr) {
           if (MaxComponent(tr) <= 0) return;
-          const double w = mis_ ? PowerHeuristic(ls.pdf, pdfProbe) : 1.0;
-          Project(order, ls.wi, ls.radiance * tr * (w / ls.pdf), sum);
+          const double wOverPdf = mis_ ? PowerHeuristicOverPdf(ls.pdf, pdfProbe) : 1 / ls.pdf;
+          Project(order, ls.wi, ls.radiance * tr * wOverPdf, sum);
         };
         if (probeRays) {
           // Read in place: zeroing a local LightSample (rep stos) took 0.8% of a bake (perf).
@@ -348,7 +335,8 @@ void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
     // Octahedral map of the direction, then cells of 2^(kCellBits - 1) squared per light.
     const Vec3d& d = shadowDir[j];
     const double l1 = std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z);
-    double ox = d.x / l1, oy = d.y / l1;
+    const double inv = 1 / l1;
+    double ox = d.x * inv, oy = d.y * inv;
     if (d.z < 0) {
       const double fx = (1 - std::fabs(oy)) * (ox < 0 ? -1 : 1);
       oy = (1 - std::fabs(ox)) * (oy < 0 ? -1 : 1);
@@ -553,11 +541,12 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
       lights_.Sample(hit.p, &v->n, importance, v->total, u.select, u.light, &v->ls)) {
     const double cosTheta = Dot(v->ls.wi, v->n);
     if (cosTheta > 0) {
+      // f cos w / pdf = (albedo / pi) cos w / pdf, the albedo in neeBase.
       const double pdfBsdf = cosTheta * kInvPi;
-      const double w = (mis_ && !v->ls.delta) ? PowerHeuristic(v->ls.pdf, pdfBsdf) : 1.0;
       v->lightSampled = true;
       v->neeBase = *beta * albedo * v->ls.radiance;
-      v->neeScale = kInvPi * cosTheta * w / v->ls.pdf;
+      v->neeScale = pdfBsdf * ((mis_ && !v->ls.delta) ? PowerHeuristicOverPdf(v->ls.pdf, pdfBsdf)
+                                                      : 1 / v->ls.pdf);
     }
   }
 
@@ -565,7 +554,9 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
   const Vec3d local = SampleCosineHemisphere(u.next);
   v->pdfDir = CosineHemispherePdf(local.z);
   if (!(v->pdfDir > 0)) return;
-  v->wi = Normalize(Framed::FromZ(v->n).FromLocal(local));
+  // Unit to a few ulp already (an orthonormal frame, a unit local vector): not normalized again,
+  // which took a square root and a division on the vertex's dependency chain.
+  v->wi = Framed::FromZ(v->n).FromLocal(local);
   // f cos / pdf = (albedo / pi) cos / (cos / pi) = albedo.
   *beta *= albedo;
   if (settings_.russianRoulette && bounce >= settings_.rrMinDepth) {

@@ -8,6 +8,6 @@ namespace probebake {
 inline constexpr const char* kGeneratorName = "probebake";
 inline constexpr const char* kVersion = "0.1.0";
 // Bumped whenever a change alters the numbers a bake produces.
-inline constexpr int kBakerVersion = 13;
+inline constexpr int kBakerVersion = 14;
 
 }  // namespace probebake
