@@ -1,6 +1,7 @@
 // Veach's power heuristic with exponent 2 (Veach 1997, ch. 9), the MIS weight of every vertex's two
 // techniques: w_a = p_a^2 / (p_a^2 + p_b^2) for a sample of technique a (pdf p_a) where technique
-// b would have drawn it with pdf p_b; p_a, p_b >= 0, either may be +inf.
+// b would have drawn it with pdf p_b; p_a, p_b >= 0, either may be +inf (not both 0, not both
+// inf: the weight is undefined there, and NaN comes back).
 //
 // Against the balance heuristic p_a / (p_a + p_b) it moves weight to whichever technique is the
 // likelier there, so less of the estimate rides on the other's rare samples (uniform directions
