@@ -25,8 +25,10 @@ long double WeightOverPdf(long double a, long double b) {
 constexpr double kFloor = std::numeric_limits<double>::min();
 
 TEST(PowerHeuristic, AgreesWithTheDefinitionAcrossScales) {
-  // Each form takes at most 5 correctly rounded operations; a relative error of 5 eps bounds
-  // their accumulated rounding (each adds at most eps / 2 relative, and the terms are positive).
+  // Rounding bound: PowerHeuristic takes 4 correctly rounded operations on either path, the
+  // OverPdf fallback at most 7 (two scalings, two squares, a sum, two divisions); each adds at
+  // most eps / 2 relative (the terms are positive, so nothing cancels), and rounding the long
+  // double reference to double eps / 2 more: 4 eps at worst, 5 eps allowed.
   const double pdfs[] = {1e-300, 1e-200, 1e-150, 1e-20, 0.07957747154594767, 0.5, 1, 3.7,
                          1e20,   1e150,  1e200,  1e300};
   for (double a : pdfs) {
@@ -42,6 +44,8 @@ TEST(PowerHeuristic, AgreesWithTheDefinitionAcrossScales) {
 }
 
 TEST(PowerHeuristic, WeightsOfTheTwoTechniquesSumToOne) {
+  // Each weight within 2 eps relative of its exact value (4 operations), the two summing to 1:
+  // the sum errs by at most 2 eps, plus eps / 2 for its own rounding; 4 eps allowed.
   for (double a : {1e-250, 1e-3, 0.25, 2.0, 1e3, 1e250}) {
     for (double b : {1e-250, 1e-3, 0.25, 2.0, 1e3, 1e250}) {
       EXPECT_NEAR(PowerHeuristic(a, b) + PowerHeuristic(b, a), 1.0, 4 * kEps)

@@ -61,6 +61,8 @@ namespace {
                          _mm256_shuffle_epi8(nibbleReversed, hi));
 }
 
+// LaineKarrasPermutation (sobol.h), lane by lane: the same constants and steps, so that the two
+// cannot drift apart unnoticed (SobolChunkImplementationsAgreeWithTheDefinition).
 [[gnu::target("avx2")]] [[gnu::always_inline]] inline __m256i LaineKarras8(__m256i v,
                                                                            __m256i seed) {
   v = _mm256_xor_si256(v, _mm256_mullo_epi32(v, _mm256_set1_epi32(int(0x3d20adeau))));
