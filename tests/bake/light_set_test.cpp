@@ -158,5 +158,59 @@ TEST(EnvironmentLight, PdfIntegratesToOneAndMatchesSampling) {
   }
 }
 
+// Given a normal, Sample rejects (pdf 0) exactly the samples below the surface it can tell from
+// their row or cell; every other sample is the one drawn without a normal, the same bits. (The
+// cell test without its radius, or the row test's maximum taken at the band's middle, fails.)
+TEST(EnvironmentLight, SamplesBelowTheSurfaceAreRejectedEarlyAndOnlyThey) {
+  auto map = std::make_shared<EnvironmentMap>();
+  map->width = 32;
+  map->height = 16;
+  map->rgb.resize(3 * 32 * 16);
+  for (size_t k = 0; k < 32 * 16; ++k)
+    map->rgb[3 * k] = map->rgb[3 * k + 1] = map->rgb[3 * k + 2] = float(1 + (k * 7919) % 13);
+  map->worldFromMap = Mat3d::Rotation(Normalize(Vec3d{1, 2, 3}), 0.4);
+  const EnvironmentLight light({Environment::Kind::kMap, {}, map});
+  std::vector<Vec3d> normals;
+  for (int a = 0; a < 3; ++a) {
+    for (double sign : {-1.0, 1.0}) {
+      Vec3d axis;
+      axis[a] = sign;
+      normals.push_back(map->worldFromMap * axis);  // the map's poles and horizon, exactly
+    }
+  }
+  SobolSampler normalSampler(7, 8), sampler(5, 6);
+  for (int i = 0; i < 500; ++i) {
+    normalSampler.StartSample(i);
+    normals.push_back(SampleUniformSphere(normalSampler.Get2D()));
+  }
+  int rejected = 0, kept = 0, nearHorizon = 0;
+  for (const Vec3d& n : normals) {
+    for (int i = 0; i < 400; ++i) {
+      sampler.StartSample(i);
+      const Vec2d u = sampler.Get2D();
+      Vec3d wiSphere, wiSurface;
+      double pdfSphere = 0, pdfSurface = 0;
+      const Vec3d radianceSphere = light.Sample(u, nullptr, &wiSphere, &pdfSphere);
+      const Vec3d radianceSurface = light.Sample(u, &n, &wiSurface, &pdfSurface);
+      ASSERT_GT(pdfSphere, 0);
+      nearHorizon += std::abs(Dot(wiSphere, n)) < 0.05;
+      if (pdfSurface == 0) {
+        ASSERT_LE(Dot(wiSphere, n), 0) << "n " << n << " wi " << wiSphere;
+        ++rejected;
+      } else {
+        ASSERT_EQ(pdfSurface, pdfSphere);
+        ASSERT_EQ(wiSurface, wiSphere);
+        ASSERT_EQ(radianceSurface, radianceSphere);
+        ++kept;
+      }
+    }
+  }
+  // About half the sphere lies below each normal, less the cells the horizon cuts.
+  const int total = rejected + kept;
+  EXPECT_GT(rejected, total / 3);
+  EXPECT_GT(kept, total / 3);
+  EXPECT_GT(nearHorizon, total / 100);
+}
+
 }  // namespace
 }  // namespace probebake

@@ -311,6 +311,24 @@ TEST(PiecewiseConstant2D, PrefetchPicksTheSampledRowAndGuessesItsColumn) {
   EXPECT_GT(uniformRowSamples, 100);
 }
 
+TEST(PiecewiseConstant2D, RowThenColumnIsSample) {
+  constexpr int rows = 24, cols = 40;
+  const PiecewiseConstant2D d(RandomWeights(rows * cols, 13, 0.1), rows, cols);
+  IndependentSampler s(29, 0);
+  for (int n = 0; n < 10000; ++n) {
+    s.StartSample(n);
+    const Vec2d u = s.Get2D();
+    const PiecewiseConstant2DSample x = d.Sample(u);
+    const DiscreteSample r = d.SampleRow(u.y);
+    const DiscreteSample c = d.SampleColumn(r.index, u.x);
+    ASSERT_EQ(r.index, x.row);
+    ASSERT_EQ(c.index, x.col);
+    ASSERT_EQ(r.pmf * c.pmf, x.pmf);
+    ASSERT_EQ(c.uRemapped, x.uRemapped.x);
+    ASSERT_EQ(r.uRemapped, x.uRemapped.y);
+  }
+}
+
 TEST(PiecewiseConstant2D, AllZeroIsUniform) {
   const std::vector<double> w(6 * 4, 0.0);
   const PiecewiseConstant2D d(w, 6, 4);

@@ -30,7 +30,50 @@ double LongitudeOf(double x, int w) {
 // only cost instructions.
 constexpr size_t kPrefetchTexels = size_t{1} << 16;
 
+// Margin of RowBelow and CellBelow, on dot products of unit vectors: far above their rounding
+// (~1e-15), far below any cell's extent.
+constexpr double kBelowMargin = 1e-9;
+
+// Map-space direction of longitude lon and sin(latitude) z.
+Vec3d MapDirection(double lon, double z) {
+  const double r = std::sqrt(std::max(0.0, (1 - z) * (1 + z)));
+  return {r * std::sin(lon), z, r * std::cos(lon)};
+}
+
+double Angle(const Vec3d& a, const Vec3d& b) {
+  return std::acos(std::clamp(Dot(a, b), -1.0, 1.0));
+}
+
 }  // namespace
+
+// The angle to `centre` is 1-Lipschitz in arc length along the cell's boundary, so its maximum
+// over 9 points per edge plus half their spacing bounds it (meridian edges: latitude steps;
+// latitude edges: arcs of at most the longitude step). The farthest direction of a cell from an
+// interior point lies on its boundary.
+double EnvironmentLight::CellRadius(const Vec3d& centre, const Cell& c) {
+  constexpr int kSteps = 8;
+  const double lat0 = std::asin(std::clamp(c.z0, -1.0, 1.0));
+  const double lat1 = std::asin(std::clamp(c.z1, -1.0, 1.0));
+  double radius = 0;
+  for (int t = 0; t <= kSteps; ++t) {
+    const double f = double(t) / kSteps;
+    const double lon = c.lon0 + f * (c.lon1 - c.lon0);
+    const double z = std::sin(lat0 + f * (lat1 - lat0));
+    for (const Vec3d& w : {MapDirection(lon, c.z0), MapDirection(lon, c.z1),
+                           MapDirection(c.lon0, z), MapDirection(c.lon1, z)})
+      radius = std::max(radius, Angle(centre, w));
+  }
+  return radius + std::max(c.lon1 - c.lon0, lat1 - lat0) / (2 * kSteps) + 1e-9;
+}
+
+bool EnvironmentLight::RowBelow(const Vec3d& nMap, int iy) const {
+  // n . w = ny z + sqrt(1 - z^2) (nx sin lon + nz cos lon) <= g(z) = ny z + h sqrt(1 - z^2),
+  // h = sqrt(nx^2 + nz^2); g is concave with its maximum at z = ny (n unit): the band's largest
+  // is g at ny clamped to the band.
+  const double h = std::sqrt(nMap.x * nMap.x + nMap.z * nMap.z);
+  const double z = std::clamp(nMap.y, rowZ0_[iy], rowZ1_[iy]);
+  return nMap.y * z + h * std::sqrt(std::max(0.0, (1 - z) * (1 + z))) < -kBelowMargin;
+}
 
 EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
   switch (env.kind) {
@@ -72,6 +115,28 @@ EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
       const double y0 = std::max(0.0, iy - 0.5), y1 = std::min(double(h - 1), iy + 0.5);
       rowZ0_[iy] = std::sin(LatitudeOf(y1, h)), rowZ1_[iy] = std::sin(LatitudeOf(y0, h));
     }
+  }
+  // Cell centres and, per row, the largest cell radius: the row's cells are congruent but for
+  // the half-width first and last columns, so those three bound them all.
+  columnSinCentre_.resize(w), columnCosCentre_.resize(w);
+  for (int ix = 0; ix < w; ++ix) {
+    const double lon = 0.5 * (columnLon0_[ix] + columnLon1_[ix]);
+    columnSinCentre_[ix] = std::sin(lon), columnCosCentre_[ix] = std::cos(lon);
+  }
+  rowZCentre_.resize(h), rowRCentre_.resize(h), rowBelowDot_.resize(h);
+  for (int iy = 0; iy < h; ++iy) {
+    const double z = 0.5 * (rowZ0_[iy] + rowZ1_[iy]);
+    rowZCentre_[iy] = z, rowRCentre_[iy] = std::sqrt(std::max(0.0, (1 - z) * (1 + z)));
+    double radius = 0;
+    for (int ix : {0, std::min(1, w - 1), w - 1}) {
+      const Vec3d centre{rowRCentre_[iy] * columnSinCentre_[ix], z,
+                         rowRCentre_[iy] * columnCosCentre_[ix]};
+      radius = std::max(radius, CellRadius(centre, CellBounds(ix, iy)));
+    }
+    // A direction w of the cell is at least angle(n, centre) - radius from n: below the surface
+    // when n . centre < cos(pi/2 + radius) = -sin(radius). Cells of a radius near pi/2 or more
+    // (maps of one or two pixels a side) are never rejected.
+    rowBelowDot_[iy] = radius < 1.5 ? -std::sin(radius) - kBelowMargin : -2.0;
   }
   std::vector<double> weights(size_t(w) * h);
   double sum = 0;
@@ -132,10 +197,18 @@ Vec3d EnvironmentLight::Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double
     }
     return *pdf > 0 ? uniform_ : Vec3d{};
   }
-  const PiecewiseConstant2DSample s = distribution_->Sample(u);
-  const int ix = int(s.col), iy = int(s.row);
-  const double pmf = s.pmf;
-  const Vec2d uCell = s.uRemapped;
+  // PiecewiseConstant2D::Sample in its two steps, stopping where the row or the cell is wholly
+  // below the surface.
+  Vec3d nMap;
+  if (n) nMap = mapFromWorld_ * *n;
+  const DiscreteSample row = distribution_->SampleRow(u.y);
+  const int iy = int(row.index);
+  if (n && RowBelow(nMap, iy)) return {};
+  const DiscreteSample column = distribution_->SampleColumn(row.index, u.x);
+  const int ix = int(column.index);
+  if (n && CellBelow(nMap, ix, iy)) return {};
+  const double pmf = row.pmf * column.pmf;
+  const Vec2d uCell{column.uRemapped, row.uRemapped};
   const Cell c = CellBounds(ix, iy);
   // Uniform in solid angle inside the cell: longitude and sin(latitude) uniform.
   const double lon = c.lon0 + uCell.x * (c.lon1 - c.lon0);

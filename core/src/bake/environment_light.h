@@ -9,6 +9,11 @@
 // luminance * solid angle, then a direction uniform in solid angle inside the cell, so the pdf is
 // exactly constant on each cell and radiance / pdf is nearly constant: the estimator's variance
 // comes from visibility and cosines, not from the map.
+//
+// Given a surface normal, a sample whose latitude band or cell lies wholly below the surface is
+// rejected as soon as its row or cell is known (pdf 0), before its direction is computed: the
+// caller would have rejected its direction anyway (n . wi <= 0), so the estimates are the same
+// bits, and at the demo room's surface vertices 78% of the sky's samples fell below the surface.
 #pragma once
 
 #include <memory>
@@ -63,6 +68,15 @@ class EnvironmentLight {
     return Vec3d(rgb[0], rgb[1], rgb[2]) * scale_;
   }
   Cell CellBounds(int ix, int iy) const;
+  // Largest angle between `centre` and a direction of cell c (an upper bound).
+  static double CellRadius(const Vec3d& centre, const Cell& c);
+  // Whether every direction of row iy's latitude band, or of cell (ix, iy), is below the
+  // surface of map-space normal nMap (n . w < 0), with a margin far above rounding.
+  bool RowBelow(const Vec3d& nMap, int iy) const;
+  bool CellBelow(const Vec3d& nMap, int ix, int iy) const {
+    const double lonDot = nMap.x * columnSinCentre_[ix] + nMap.z * columnCosCentre_[ix];
+    return rowRCentre_[iy] * lonDot + nMap.y * rowZCentre_[iy] < rowBelowDot_[iy];
+  }
   // Solid angle of cell (ix, iy): its longitude range times its sin(latitude) range. Computed,
   // not tabled: a table per texel would be one more cache miss per sample of a large map.
   double CellSolidAngle(int ix, int iy) const {
@@ -80,6 +94,10 @@ class EnvironmentLight {
   bool prefetch_ = false;  // Prefetch does something
   Mat3d worldFromMap_, mapFromWorld_;
   std::vector<double> columnLon0_, columnLon1_, rowZ0_, rowZ1_;  // cell bounds (CellBounds)
+  // Cell centres, (rowRCentre sin lon, rowZCentre, rowRCentre cos lon) at the column's centre
+  // longitude, and per row the dot product with the normal under which a cell is wholly below
+  // the surface: -sin(largest cell radius of the row) less a margin (CellBelow).
+  std::vector<double> columnSinCentre_, columnCosCentre_, rowZCentre_, rowRCentre_, rowBelowDot_;
   std::unique_ptr<PiecewiseConstant2D> distribution_;
   double importance_ = 0;
 };

@@ -98,6 +98,11 @@ class PiecewiseConstant2D {
   double Total() const { return marginal_.Total(); }
 
   PiecewiseConstant2DSample Sample(Vec2d u) const;
+  // Sample's two steps, for callers that may stop after the row: r = SampleRow(u.y), then
+  // c = SampleColumn(r.index, u.x) give Sample(u) = {r.index, c.index, r.pmf * c.pmf,
+  // {c.uRemapped, r.uRemapped}}, the same bits.
+  DiscreteSample SampleRow(double uy) const { return marginal_.Sample(uy); }
+  DiscreteSample SampleColumn(int64_t row, double ux) const { return conditional_[row].Sample(ux); }
   // A hint (DiscreteDistribution::Prefetch): picks the row Sample(u) picks and starts loading
   // what it will read in that row; returns the row and a guess of the column.
   void Prefetch(Vec2d u, int64_t* row, int64_t* colGuess) const {
