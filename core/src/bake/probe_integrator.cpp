@@ -551,19 +551,21 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
   }
 
   v->continues = false;
+  // f cos / pdf = (albedo / pi) cos / (cos / pi) = albedo, whatever the direction: roulette is
+  // decided first, and a path it ends samples no direction (beta is not read once a path ends).
+  Vec3d betaNext = *beta * albedo;
+  if (settings_.russianRoulette && bounce >= settings_.rrMinDepth) {
+    const double survive = std::min(1.0, MaxComponent(betaNext));
+    if (u.roulette >= survive) return;
+    betaNext = betaNext / survive;
+  }
   const Vec3d local = SampleCosineHemisphere(u.next);
   v->pdfDir = CosineHemispherePdf(local.z);
   if (!(v->pdfDir > 0)) return;
   // Unit to a few ulp already (an orthonormal frame, a unit local vector): not normalized again,
   // which took a square root and a division on the vertex's dependency chain.
   v->wi = Framed::FromZ(v->n).FromLocal(local);
-  // f cos / pdf = (albedo / pi) cos / (cos / pi) = albedo.
-  *beta *= albedo;
-  if (settings_.russianRoulette && bounce >= settings_.rrMinDepth) {
-    const double survive = std::min(1.0, MaxComponent(*beta));
-    if (u.roulette >= survive) return;
-    *beta = *beta / survive;
-  }
+  *beta = betaNext;
   v->continues = true;
 }
 
