@@ -130,14 +130,20 @@ TEST(EnvironmentLight, CellsFollowImfLatLongMap) {
   EXPECT_GT(compared, 1900);
 }
 
-TEST(EnvironmentLight, PdfIntegratesToOneAndMatchesSampling) {
+// A w x h map of grey levels 1 to 13 in a hashed pattern, rotated off the axes.
+std::shared_ptr<const EnvironmentMap> GreyNoiseMap(int w, int h) {
   auto map = std::make_shared<EnvironmentMap>();
-  map->width = 16;
-  map->height = 8;
-  map->rgb.resize(3 * 16 * 8);
-  for (size_t k = 0; k < 16 * 8; ++k)
+  map->width = w;
+  map->height = h;
+  map->rgb.resize(3 * size_t(w) * h);
+  for (size_t k = 0; k < size_t(w) * h; ++k)
     map->rgb[3 * k] = map->rgb[3 * k + 1] = map->rgb[3 * k + 2] = float(1 + (k * 7919) % 13);
   map->worldFromMap = Mat3d::Rotation(Normalize(Vec3d{1, 2, 3}), 0.4);
+  return map;
+}
+
+TEST(EnvironmentLight, PdfIntegratesToOneAndMatchesSampling) {
+  const std::shared_ptr<const EnvironmentMap> map = GreyNoiseMap(16, 8);
   const EnvironmentLight light({Environment::Kind::kMap, {}, map});
   // Integral of the pdf over the sphere by a fine product rule: the pdf is piecewise constant, so
   // the rule's error comes from cells cut by its nodes: O(1/n) with n = 2048 -> < 1e-2.
@@ -162,13 +168,7 @@ TEST(EnvironmentLight, PdfIntegratesToOneAndMatchesSampling) {
 // their row or cell; every other sample is the one drawn without a normal, the same bits. (The
 // cell test without its radius, or the row test's maximum taken at the band's middle, fails.)
 TEST(EnvironmentLight, SamplesBelowTheSurfaceAreRejectedEarlyAndOnlyThey) {
-  auto map = std::make_shared<EnvironmentMap>();
-  map->width = 32;
-  map->height = 16;
-  map->rgb.resize(3 * 32 * 16);
-  for (size_t k = 0; k < 32 * 16; ++k)
-    map->rgb[3 * k] = map->rgb[3 * k + 1] = map->rgb[3 * k + 2] = float(1 + (k * 7919) % 13);
-  map->worldFromMap = Mat3d::Rotation(Normalize(Vec3d{1, 2, 3}), 0.4);
+  const std::shared_ptr<const EnvironmentMap> map = GreyNoiseMap(32, 16);
   const EnvironmentLight light({Environment::Kind::kMap, {}, map});
   std::vector<Vec3d> normals;
   for (int a = 0; a < 3; ++a) {
