@@ -35,7 +35,10 @@ class EnvironmentLight {
   Vec3d Radiance(const Vec3d& wi) const;
   // Samples a direction: proportional to luminance x solid angle for a map; for a uniform
   // environment cosine-weighted about n when a surface normal is given, else uniform. Returns the
-  // radiance from wi; pdf per steradian (0 when nothing can be sampled).
+  // radiance from wi; pdf per steradian (0 when nothing can be sampled). With a normal, a map's
+  // sample whose row or cell is wholly below the surface returns black with pdf 0 (and *wi
+  // unset); every other sample is the one drawn without the normal, and Pdf is unchanged: the
+  // rejected directions are those where the surface receives nothing.
   Vec3d Sample(const Vec2d& u, const Vec3d* n, Vec3d* wi, double* pdf) const;
   // A hint, no effect on results: for a map whose tables do not fit in the cache, starts loading
   // what Sample(u, ...) will read, so that work done between the two hides the memory latency.
