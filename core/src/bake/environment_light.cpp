@@ -40,10 +40,6 @@ Vec3d MapDirection(double lon, double z) {
   return {r * std::sin(lon), z, r * std::cos(lon)};
 }
 
-double Angle(const Vec3d& a, const Vec3d& b) {
-  return std::acos(std::clamp(Dot(a, b), -1.0, 1.0));
-}
-
 }  // namespace
 
 // The angle to `centre` is 1-Lipschitz in arc length along the cell's boundary, so its maximum
@@ -61,7 +57,7 @@ double EnvironmentLight::CellRadius(const Vec3d& centre, const Cell& c) {
     const double z = std::sin(lat0 + f * (lat1 - lat0));
     for (const Vec3d& w : {MapDirection(lon, c.z0), MapDirection(lon, c.z1),
                            MapDirection(c.lon0, z), MapDirection(c.lon1, z)})
-      radius = std::max(radius, Angle(centre, w));
+      radius = std::max(radius, AngleBetween(centre, w));
   }
   return radius + std::max(c.lon1 - c.lon0, lat1 - lat0) / (2 * kSteps) + 1e-9;
 }
@@ -128,11 +124,8 @@ EnvironmentLight::EnvironmentLight(const Environment& env) : kind_(env.kind) {
     const double z = 0.5 * (rowZ0_[iy] + rowZ1_[iy]);
     rowZCentre_[iy] = z, rowRCentre_[iy] = std::sqrt(std::max(0.0, (1 - z) * (1 + z)));
     double radius = 0;
-    for (int ix : {0, std::min(1, w - 1), w - 1}) {
-      const Vec3d centre{rowRCentre_[iy] * columnSinCentre_[ix], z,
-                         rowRCentre_[iy] * columnCosCentre_[ix]};
-      radius = std::max(radius, CellRadius(centre, CellBounds(ix, iy)));
-    }
+    for (int ix : {0, std::min(1, w - 1), w - 1})
+      radius = std::max(radius, CellRadius(CellCentre(ix, iy), CellBounds(ix, iy)));
     // A direction w of the cell is at least angle(n, centre) - radius from n: below the surface
     // when n . centre < cos(pi/2 + radius) = -sin(radius). Cells of a radius near pi/2 or more
     // (maps of one or two pixels a side) are never rejected.

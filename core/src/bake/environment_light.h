@@ -77,8 +77,12 @@ class EnvironmentLight {
   // surface of map-space normal nMap (n . w < 0), with a margin far above rounding.
   bool RowBelow(const Vec3d& nMap, int iy) const;
   bool CellBelow(const Vec3d& nMap, int ix, int iy) const {
-    const double lonDot = nMap.x * columnSinCentre_[ix] + nMap.z * columnCosCentre_[ix];
-    return rowRCentre_[iy] * lonDot + nMap.y * rowZCentre_[iy] < rowBelowDot_[iy];
+    return Dot(nMap, CellCentre(ix, iy)) < rowBelowDot_[iy];
+  }
+  // Map-space direction of the cell's centre (its centre longitude and sin(latitude)).
+  Vec3d CellCentre(int ix, int iy) const {
+    return {rowRCentre_[iy] * columnSinCentre_[ix], rowZCentre_[iy],
+            rowRCentre_[iy] * columnCosCentre_[ix]};
   }
   // Solid angle of cell (ix, iy): its longitude range times its sin(latitude) range. Computed,
   // not tabled: a table per texel would be one more cache miss per sample of a large map.

@@ -22,7 +22,7 @@ Cone Union(const Cone& a, const Cone& b) {
   Cone out;
   out.thetaE = std::max(a.thetaE, b.thetaE);
   if (a.thetaO >= kPi || b.thetaO >= kPi) return out;
-  const double thetaD = std::acos(std::clamp(Dot(a.axis, b.axis), -1.0, 1.0));
+  const double thetaD = AngleBetween(a.axis, b.axis);
   if (std::min(thetaD + b.thetaO, kPi) <= a.thetaO) return {a.axis, a.thetaO, out.thetaE};
   if (std::min(thetaD + a.thetaO, kPi) <= b.thetaO) return {b.axis, b.thetaO, out.thetaE};
   const double thetaO = (a.thetaO + thetaD + b.thetaO) / 2;

@@ -134,8 +134,8 @@ PiecewiseConstant2D::PiecewiseConstant2D(std::span<const double> weights, int64_
       marginal_(RowTotals(conditional_)) {}
 
 PiecewiseConstant2DSample PiecewiseConstant2D::Sample(Vec2d u) const {
-  const DiscreteSample r = marginal_.Sample(u.y);
-  const DiscreteSample c = conditional_[r.index].Sample(u.x);
+  const DiscreteSample r = SampleRow(u.y);
+  const DiscreteSample c = SampleColumn(r.index, u.x);
   return {r.index, c.index, r.pmf * c.pmf, {c.uRemapped, r.uRemapped}};
 }
 

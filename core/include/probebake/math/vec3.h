@@ -99,6 +99,11 @@ template <typename T>
 constexpr T Dot(const Vec3<T>& a, const Vec3<T>& b) {
   return a.x * b.x + a.y * b.y + a.z * b.z;
 }
+// The angle between unit vectors a and b, in [0, pi] (their dot product clamped against rounding).
+template <typename T>
+T AngleBetween(const Vec3<T>& a, const Vec3<T>& b) {
+  return std::acos(std::clamp(Dot(a, b), T(-1), T(1)));
+}
 template <typename T>
 constexpr Vec3<T> Cross(const Vec3<T>& a, const Vec3<T>& b) {
   return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
