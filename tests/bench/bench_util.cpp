@@ -52,6 +52,20 @@ double ThreadCpuSeconds() {
   return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
 }
 
+CpuPin::CpuPin() {
+  CPU_ZERO(&saved_);
+  const int cpu = sched_getcpu();
+  if (cpu < 0 || sched_getaffinity(0, sizeof(saved_), &saved_) != 0) return;
+  cpu_set_t one;
+  CPU_ZERO(&one);
+  CPU_SET(cpu, &one);
+  pinned_ = sched_setaffinity(0, sizeof(one), &one) == 0;
+}
+
+CpuPin::~CpuPin() {
+  if (pinned_) sched_setaffinity(0, sizeof(saved_), &saved_);
+}
+
 double LoadAverage1() {
   std::ifstream in("/proc/loadavg");
   double load = -1;

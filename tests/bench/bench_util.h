@@ -2,6 +2,8 @@
 // machine's load, resident memory from /proc/self/status, and file I/O.
 #pragma once
 
+#include <sched.h>
+
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -20,6 +22,23 @@ double ThreadCpuSeconds();
 double LoadAverage1();
 // Hardware threads of the machine.
 int HardwareThreads();
+
+// Pins the calling thread to the CPU it is running on for the object's lifetime, then restores
+// the thread's affinity; does nothing where the affinity cannot be read or set. Both halves of a
+// paired reading then run on one CPU: the vCPUs of a shared VM differ in speed from one minute to
+// the next (a tracer bake on one and raw Embree on the other were seen to read 1.4x apart, their
+// roles swapping from one pair to the next).
+class CpuPin {
+ public:
+  CpuPin();
+  ~CpuPin();
+  CpuPin(const CpuPin&) = delete;
+  CpuPin& operator=(const CpuPin&) = delete;
+
+ private:
+  cpu_set_t saved_;
+  bool pinned_ = false;
+};
 
 // Resident memory figures of this process from /proc/self/status, bytes; -1 if unavailable.
 int64_t PeakRssBytes();     // VmHWM
