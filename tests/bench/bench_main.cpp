@@ -536,9 +536,12 @@ absl::Status Run(const Options& opt) {
         PB_ASSIGN_OR_RETURN(const RawRate rate,
                             MeasureRawProbeRate(job, probes, opt.quick ? 0.05 : 0.25, 3));
         const double tracerMrays = double(t.volume.stats.rays) / t.cpu * 1e-6;
-        log->info("{}: pair {}: bake {:.3f} CPU s, {:.2f} Mrays/CPU-s; raw {:.2f} Mrays/CPU-s",
-                  scene.name, k, t.cpu, tracerMrays, rate.cpuMraysPerSecond);
+        log->info(
+            "{}: pair {} on CPU {}: bake {:.3f} CPU s, {:.2f} Mrays/CPU-s; raw {:.2f} "
+            "Mrays/CPU-s",
+            scene.name, k, pin.cpu(), t.cpu, tracerMrays, rate.cpuMraysPerSecond);
         tp.pairedFractions.push_back(tracerMrays / rate.cpuMraysPerSecond);
+        tp.pairedCpus.push_back(pin.cpu());
       }
       results.throughput.push_back(std::move(tp));
     }

@@ -665,6 +665,18 @@ std::string Markdown(const BenchResults& r) {
         samplingMrays / raw->cpuMraysPerSecond, PairedText(tp.pairedFractions).c_str(),
         tp.embreeOnlySeconds / tp.bakeCpuSeconds, tp.embreeOnlySamplingSeconds / samplingCpu);
   }
+  // In run order, with the CPU of each: a shared VM's vCPU that slows down mid-run slows the
+  // bake more than raw Embree, so its pairs read low together and pairing cannot cancel it.
+  md += "\nPaired fractions in run order (the CPU each pair ran on):\n\n";
+  for (const ThroughputInfo& tp : r.throughput) {
+    md += "- " + tp.scene + ":";
+    for (size_t k = 0; k < tp.pairedFractions.size(); ++k) {
+      const int cpu = k < tp.pairedCpus.size() ? tp.pairedCpus[k] : -1;
+      md += Format(" %.2f (%s)", tp.pairedFractions[k],
+                   cpu >= 0 ? Format("CPU %d", cpu).c_str() : "unpinned");
+    }
+    md += "\n";
+  }
   md +=
       "\nRaw Embree, Mrays/s (per wall second at 1 and 2 threads; per CPU second of the tracing "
       "threads in brackets):\n\n| scene | rays | API | 1 thread | 2 threads |\n|---|---|---|---|"
@@ -910,13 +922,14 @@ std::string Json(const BenchResults& r) {
         "\"tracerWallMrays\": %s, \"rays\": %lld, \"intersectRays\": %lld, "
         "\"shadowRays\": %lld, \"embreeShare\": %s, \"bakeCpuSeconds\": %s, "
         "\"setupCpuSeconds\": %s, \"setupRays\": %lld, \"pairedFractions\": [%s], "
-        "\"raw\": [",
+        "\"pairedCpus\": [%s], \"raw\": [",
         JsonString(tp.scene).c_str(), (long long)tp.raw.triangles,
         JsonNumber(tp.tracerCpuMrays).c_str(), JsonNumber(tp.tracerWallMrays).c_str(),
         (long long)tp.rays, (long long)tp.intersectRays, (long long)tp.shadowRays,
         JsonNumber(tp.embreeOnlySeconds / tp.bakeCpuSeconds).c_str(),
         JsonNumber(tp.bakeCpuSeconds).c_str(), JsonNumber(tp.setupCpuSeconds).c_str(),
-        (long long)tp.setupRays, JoinNumbers(tp.pairedFractions).c_str());
+        (long long)tp.setupRays, JoinNumbers(tp.pairedFractions).c_str(),
+        JoinNumbers(std::vector<double>(tp.pairedCpus.begin(), tp.pairedCpus.end())).c_str());
     for (size_t k = 0; k < tp.raw.rates.size(); ++k) {
       const RawRate& rr = tp.raw.rates[k];
       j += Format(

@@ -54,11 +54,11 @@ double ThreadCpuSeconds() {
 
 CpuPin::CpuPin() {
   CPU_ZERO(&saved_);
-  const int cpu = sched_getcpu();
-  if (cpu < 0 || sched_getaffinity(0, sizeof(saved_), &saved_) != 0) return;
+  cpu_ = sched_getcpu();
+  if (cpu_ < 0 || sched_getaffinity(0, sizeof(saved_), &saved_) != 0) return;
   cpu_set_t one;
   CPU_ZERO(&one);
-  CPU_SET(cpu, &one);
+  CPU_SET(cpu_, &one);
   pinned_ = sched_setaffinity(0, sizeof(one), &one) == 0;
 }
 

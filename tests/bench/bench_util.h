@@ -35,8 +35,12 @@ class CpuPin {
   CpuPin(const CpuPin&) = delete;
   CpuPin& operator=(const CpuPin&) = delete;
 
+  // The CPU the thread is pinned to; -1 when pinning failed (the thread may then migrate).
+  int cpu() const { return pinned_ ? cpu_ : -1; }
+
  private:
   cpu_set_t saved_;
+  int cpu_ = -1;
   bool pinned_ = false;
 };
 
