@@ -671,7 +671,7 @@ std::string Markdown(const BenchResults& r) {
   for (const ThroughputInfo& tp : r.throughput) {
     md += "- " + tp.scene + ":";
     for (size_t k = 0; k < tp.pairedFractions.size(); ++k) {
-      const int cpu = k < tp.pairedCpus.size() ? tp.pairedCpus[k] : -1;
+      const int cpu = tp.pairedCpus[k];
       md += Format(" %.2f (%s)", tp.pairedFractions[k],
                    cpu >= 0 ? Format("CPU %d", cpu).c_str() : "unpinned");
     }

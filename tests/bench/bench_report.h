@@ -64,8 +64,9 @@ struct ThroughputInfo {
   // changes during the run moves both halves of a pair alike, so their median is steadier than
   // the ratio of two measurements taken minutes apart.
   std::vector<double> pairedFractions;
-  // The CPU each pair ran on (-1: not pinned). A shared VM's vCPUs slow down at different times,
-  // and they slow the bake more than raw Embree, so a low pair can be traced to its CPU.
+  // The CPU each pair ran on (-1: not pinned), one entry per entry of pairedFractions. A shared
+  // VM's vCPUs slow down at different times, and they slow the bake more than raw Embree, so a low
+  // pair can be traced to its CPU.
   std::vector<int> pairedCpus;
 };
 

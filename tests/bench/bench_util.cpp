@@ -54,16 +54,16 @@ double ThreadCpuSeconds() {
 
 CpuPin::CpuPin() {
   CPU_ZERO(&saved_);
-  cpu_ = sched_getcpu();
-  if (cpu_ < 0 || sched_getaffinity(0, sizeof(saved_), &saved_) != 0) return;
+  const int cpu = sched_getcpu();
+  if (cpu < 0 || sched_getaffinity(0, sizeof(saved_), &saved_) != 0) return;
   cpu_set_t one;
   CPU_ZERO(&one);
-  CPU_SET(cpu_, &one);
-  pinned_ = sched_setaffinity(0, sizeof(one), &one) == 0;
+  CPU_SET(cpu, &one);
+  if (sched_setaffinity(0, sizeof(one), &one) == 0) cpu_ = cpu;
 }
 
 CpuPin::~CpuPin() {
-  if (pinned_) sched_setaffinity(0, sizeof(saved_), &saved_);
+  if (cpu_ >= 0) sched_setaffinity(0, sizeof(saved_), &saved_);
 }
 
 double LoadAverage1() {

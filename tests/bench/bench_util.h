@@ -36,12 +36,11 @@ class CpuPin {
   CpuPin& operator=(const CpuPin&) = delete;
 
   // The CPU the thread is pinned to; -1 when pinning failed (the thread may then migrate).
-  int cpu() const { return pinned_ ? cpu_ : -1; }
+  int cpu() const { return cpu_; }
 
  private:
   cpu_set_t saved_;
   int cpu_ = -1;
-  bool pinned_ = false;
 };
 
 // Resident memory figures of this process from /proc/self/status, bytes; -1 if unavailable.
