@@ -42,7 +42,7 @@ class EmbreeScene {
   EmbreeScene& operator=(const EmbreeScene&) = delete;
 
   absl::Status Build(const Scene& scene, const Vec3d& offset, int64_t* triangles) {
-    device_ = rtcNewDevice(nullptr);
+    device_ = rtcNewDevice(kEmbreeDeviceConfig);  // the kernels the tracer runs
     if (!device_) return absl::InternalError("Embree: cannot create a device");
     scene_ = rtcNewScene(device_);
     rtcSetSceneFlags(scene_, RTC_SCENE_FLAG_ROBUST);

@@ -178,12 +178,13 @@ Vec3d LocalOrigin(const Scene& scene) {
 }
 
 absl::StatusOr<std::unique_ptr<TracerScene>> TracerScene::Build(const Scene& scene,
-                                                                const Vec3d& offset) {
+                                                                const Vec3d& offset,
+                                                                const char* deviceConfig) {
   std::unique_ptr<TracerScene> out(new TracerScene);
   out->offset_ = offset;
   out->impl_ = std::make_unique<Impl>();
   Impl& impl = *out->impl_;
-  impl.device = rtcNewDevice(nullptr);
+  impl.device = rtcNewDevice(deviceConfig);
   if (!impl.device)
     return absl::InternalError("Embree: cannot create a device (error " +
                                std::to_string(int(rtcGetDeviceError(nullptr))) + ")");

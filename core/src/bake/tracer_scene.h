@@ -33,11 +33,21 @@ struct SurfaceHit {
   uint32_t prim = 0;   // triangle index within the mesh
 };
 
+// The Embree device configuration of every bake. Embree picks its kernels by the CPU's
+// instruction set at run time, and its AVX2 and AVX-512 kernels use fused multiply-adds: they
+// round hit distances and barycentrics differently from its SSE and AVX kernels, so the same job
+// would bake different bits on different machines (and the shards of one grid baked on a mixed
+// cluster would not merge into a local bake's bits). Capped at AVX, every x86-64 CPU runs kernels
+// without fused multiply-adds and traces the same hits; on the bench scenes the cap costs no
+// measurable time (docs/performance-history.md).
+inline constexpr const char* kEmbreeDeviceConfig = "max_isa=avx";
+
 class TracerScene {
  public:
   // Builds the BVH. Errors reported by Embree's device callback come back as INTERNAL.
-  static absl::StatusOr<std::unique_ptr<TracerScene>> Build(const Scene& scene,
-                                                            const Vec3d& offset);
+  // deviceConfig: Embree's rtcNewDevice configuration (tests compare kernels through it).
+  static absl::StatusOr<std::unique_ptr<TracerScene>> Build(
+      const Scene& scene, const Vec3d& offset, const char* deviceConfig = kEmbreeDeviceConfig);
   ~TracerScene();
   TracerScene(const TracerScene&) = delete;
   TracerScene& operator=(const TracerScene&) = delete;
