@@ -213,24 +213,26 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
   const Vec3d offset = LocalOrigin(job.scene);
   const ProbeSites sites(job.scene, offset);
   PB_ASSIGN_OR_RETURN(std::unique_ptr<TracerScene> tracer, TracerScene::Build(job.scene, offset));
-  LightSet lights(job.scene, *tracer);
-  const ProbeIntegrator integrator(job.scene, *tracer, lights, settings);
+  LightSet unweighted(job.scene, *tracer);
   const ProbeFinisher finisher(settings);
   // Where geometry can hide lights, how much of each light reaches each region
   // (light_visibility.h). The pure direction-sampling estimator never chooses a light.
   int64_t visibilityRays = 0;
+  LightVisibility visibility;
   if (options.lightVisibility && settings.estimator != Estimator::kDirectionSampling &&
       !job.scene.meshes.empty()) {
     const auto visibilityStart = Clock::now();
-    LightVisibility visibility = LightVisibility::Build(*tracer, lights, integrator);
+    visibility = LightVisibility::Build(*tracer, unweighted,
+                                        ProbeIntegrator(job.scene, *tracer, unweighted, settings));
     visibilityRays = visibility.rays();
     if (visibility.dims(0) > 0) {
       log->info("light visibility: {} x {} x {} cells, {} entries, {} rays, {:.3f} s",
-                visibility.dims(0), visibility.dims(1), visibility.dims(2), lights.ImportanceSize(),
-                visibilityRays, Seconds(visibilityStart));
+                visibility.dims(0), visibility.dims(1), visibility.dims(2),
+                unweighted.ImportanceSize(), visibilityRays, Seconds(visibilityStart));
     }
-    lights.SetVisibility(std::move(visibility));
   }
+  const LightSet lights(std::move(unweighted), std::move(visibility));
+  const ProbeIntegrator integrator(job.scene, *tracer, lights, settings);
   log->info(
       "scene ready in {:.3f} s: {} meshes, {} lights ({} chosen through light trees), {} probes, "
       "order {}, {} samples/probe",

@@ -1,0 +1,95 @@
+#include "mesh_emitter.h"
+
+#include <array>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "probebake/sampling/warps.h"
+
+namespace probebake {
+
+std::optional<MeshEmitter> MeshEmitter::Build(const Scene& scene, const TracerScene& tracer,
+                                              uint32_t mesh) {
+  const TriangleMesh& m = scene.meshes[mesh];
+  const Vec3d& emission = scene.materials[m.material].emission;
+  if (MaxComponent(emission) <= 0 || m.TriangleCount() == 0) return std::nullopt;
+  std::vector<double> areas(m.TriangleCount());
+  for (size_t t = 0; t < m.TriangleCount(); ++t) {
+    const Vec3d& a = m.positions[m.indices[3 * t]];
+    const Vec3d& b = m.positions[m.indices[3 * t + 1]];
+    const Vec3d& c = m.positions[m.indices[3 * t + 2]];
+    areas[t] = 0.5 * Length(Cross(b - a, c - a));
+  }
+  MeshEmitter light(m, tracer, mesh, emission, areas);
+  if (!(light.area_ > 0)) return std::nullopt;
+  return light;
+}
+
+MeshEmitter::MeshEmitter(const TriangleMesh& mesh, const TracerScene& tracer, uint32_t index,
+                         const Vec3d& radiance, std::span<const double> triangleAreas)
+    : mesh_(&mesh),
+      tracer_(&tracer),
+      index_(index),
+      radiance_(radiance),
+      power_(Luminance(radiance)),
+      triangles_(triangleAreas) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const Vec3d& offset = tracer.offset();
+  lo_ = {kInf, kInf, kInf};
+  hi_ = {-kInf, -kInf, -kInf};
+  for (size_t t = 0; t < triangleAreas.size(); ++t) {
+    area_ += triangleAreas[t];
+    for (int k = 0; k < 3; ++k) {
+      const Vec3d v = mesh.positions[mesh.indices[3 * t + k]] - offset;
+      lo_ = Min(lo_, v);
+      hi_ = Max(hi_, v);
+    }
+  }
+  centre_ = (lo_ + hi_) * 0.5;
+  vertexScale_ = std::max(MaxComponent(Abs(lo_)), MaxComponent(Abs(hi_)));
+}
+
+bool MeshEmitter::Sample(const Vec3d& p, const Vec3d* /*n*/, const Vec2d& u, LightSample* s) const {
+  const DiscreteSample pick = triangles_.Sample(u.x);
+  const size_t t = size_t(pick.index);
+  const Vec3d& offset = tracer_->offset();
+  const Vec3d a = mesh_->positions[mesh_->indices[3 * t]] - offset;
+  const Vec3d b = mesh_->positions[mesh_->indices[3 * t + 1]] - offset;
+  const Vec3d c = mesh_->positions[mesh_->indices[3 * t + 2]] - offset;
+  const std::array<double, 3> bary = SampleUniformTriangle({pick.uRemapped, u.y});
+  const Vec3d q = a * bary[0] + b * bary[1] + c * bary[2];
+  const Vec3d v = q - p;
+  const double d2 = LengthSquared(v);
+  if (!(d2 > 0)) return false;
+  const double d = std::sqrt(d2);
+  s->wi = v * (1 / d);
+  const Vec3d ng = Vec3d(tracer_->TriangleNormal(index_, uint32_t(t)));
+  const double cosLight = -Dot(s->wi, ng);
+  if (cosLight <= 0) return false;  // emissive triangles emit from their front side only
+  s->distance = d;
+  s->point = q;
+  s->vertexScale = vertexScale_;
+  s->radiance = radiance_;
+  // pmf(t) = area_t / area; uniform on t: 1 / area_t; together 1 / area.
+  s->pdf = d2 / (area_ * cosLight);
+  return true;
+}
+
+bool MeshEmitter::EvalHit(const Vec3d& /*p*/, const Vec3d& wi, const SurfaceHit& hit, double pmf,
+                          LightHit* out) const {
+  const double cosLight = -Dot(wi, hit.ng);
+  if (cosLight <= 0) return false;
+  out->radiance = radiance_;
+  out->pdf = pmf * (hit.t * hit.t) / (area_ * cosLight);
+  return true;
+}
+
+bool MeshEmitter::TreeItem(LightTree::Item* item) const {
+  item->lo = lo_, item->hi = hi_;
+  item->weight = power_ * area_;
+  item->clamp = area_;
+  return true;
+}
+
+}  // namespace probebake
