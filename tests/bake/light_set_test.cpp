@@ -26,7 +26,7 @@ Scene ManyLights() {
   AddQuad(&scene, {1, 1, 2}, {1.5, 1, 2.2}, {1.5, 1.5, 2.2}, {1, 1.5, 2}, lamp);  // faces ~down? no
   AddQuad(&scene, {-1, 1, 2}, {-1, 1.5, 2}, {-1.5, 1.5, 2}, {-1.5, 1, 2}, lamp);
   // 4 m^2 at 1 to 2 m above the shading points: sampled by solid angle from the points near it,
-  // by area from the others (light_set.cpp's threshold, area / d^2 = 1).
+  // by area from the others (area_emitters.cpp's threshold, area / d^2 = 1).
   scene.lights.push_back(RectLight{{-1, -2.5, 1.5}, {0, 2, 0}, {2, 0, 0}, {4, 4, 4}, false});
   scene.lights.push_back(RectLight{{2, -2, 0.5}, {0.5, 0, 0.3}, {0.2, 0.6, 0}, {1, 1, 1}, true});
   scene.lights.push_back(

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <vector>
 
 #include "bake_test_util.h"
 #include "core/src/bake/light_set.h"
@@ -121,6 +122,31 @@ TEST(LightVisibility, TheSameSceneGivesTheSameFactors) {
     }
   }
   EXPECT_EQ(compared, 64);
+}
+
+// The set built with a table (LightSet(LightSet&&, LightVisibility)) scales each entry's
+// importance by the factors of p's cell, and leaves it as it was outside the table's box.
+TEST(LightVisibility, TheSetBuiltWithTheTableWeighsImportanceByIt) {
+  const Scene scene = HalfRoofedGround();
+  auto tracer = TracerScene::Build(scene, LocalOrigin(scene));
+  ASSERT_TRUE(tracer.ok()) << tracer.status();
+  LightSet unweighted(scene, **tracer);
+  const LightVisibility table = BuildFor(scene, **tracer, unweighted);
+  const Vec3d offset = (*tracer)->offset();
+  const Vec3d roofed = Vec3d{-2.2, 0.3, 1} - offset, outside = Vec3d{0, 0, 5} - offset;
+  std::vector<double> roofedBefore(2), outsideBefore(2), roofedAfter(2), outsideAfter(2);
+  unweighted.Importance(roofed, nullptr, true, roofedBefore);
+  unweighted.Importance(outside, nullptr, true, outsideBefore);
+  const float* factor = table.At(roofed);
+  ASSERT_NE(factor, nullptr);
+  ASSERT_EQ(factor[0], float(LightVisibility::kFloor));  // the sun, hidden by the roof
+  const LightSet lights(std::move(unweighted), table);
+  lights.Importance(roofed, nullptr, true, roofedAfter);
+  lights.Importance(outside, nullptr, true, outsideAfter);
+  for (size_t e = 0; e < 2; ++e) {
+    EXPECT_EQ(roofedAfter[e], roofedBefore[e] * factor[e]) << e;
+    EXPECT_EQ(outsideAfter[e], outsideBefore[e]) << e;
+  }
 }
 
 // A 4 x 4 x 2.5 room lit by a ceiling light, and by a sun and a sky through a window in its north
