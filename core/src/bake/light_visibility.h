@@ -9,10 +9,8 @@
 // LightSet scales an entry's importance at p by Factor = kFloor + (1 - kFloor) * fraction of p's
 // cell. Any positive factor keeps the estimator unbiased (a light is still chosen wherever it
 // could contribute, and MIS uses the same importance); the floor bounds the cost where a cell's
-// fraction misleads (a cell straddling a wall, a sun patch smaller than a cell). Measured by the
-// bench (4096 samples per probe, default settings): the demo room's mean irradiance error fell
-// from 3.53% to 2.83% at the same samples (variance / 1.6), the open courtyard's stayed (1.74%,
-// 1.71%).
+// fraction misleads (a cell straddling a wall, a sun patch smaller than a cell). The bench's
+// errors with and without the table: docs/performance-history.md.
 //
 // Deterministic: each cell's rays come from its own stream, hashed from the cell's index and a
 // fixed key, so the factors depend on the scene alone (not on the grid, seed, thread count or
@@ -38,9 +36,8 @@ class LightVisibility {
   // Shadow rays per cell and entry.
   static constexpr int kRaysPerCell = 16;
   // At most this many rays in all (the cell count shrinks with the number of entries): 16 x 12 x 6
-  // cells for the demo room's 3 entries, 0.015 s at 1 thread. A table 8 times as fine, 32 x 24 x
-  // 12, lowered the demo's error at 4096 samples per probe only from 2.83% to 2.79%, and cost
-  // 0.1 s, more than the whole bake of its 144 probes at 64 samples.
+  // cells for the demo room's 3 entries. A finer table barely lowered the demo's error and cost
+  // more than a small bake (docs/performance-history.md).
   static constexpr int64_t kRayBudget = int64_t{1} << 16;
 
   // One shadow ray from x toward light-choice entry `entry`, its point chosen by u (three numbers
@@ -57,7 +54,8 @@ class LightVisibility {
 
   // The table of a bake: over the tracer's geometry bounds, for `lights`' entries (sampled as
   // LightSet::SampleEntry does), shadow rays traced by `integrator` (its medium attenuates, and
-  // counts as arriving unless it blocks all).
+  // counts as arriving unless it blocks all). `lights` is the set without a table; the bake's set
+  // is then built from it with this one (LightSet(LightSet&&, LightVisibility)).
   static LightVisibility Build(const TracerScene& tracer, const LightSet& lights,
                                const ProbeIntegrator& integrator);
 
