@@ -1,6 +1,7 @@
 // Lights with a surface of uniform radiance that rays can hit (emitter.h's contract, family
-// kSurface): rect (a parallelogram), disk and sphere lights. The tracer holds their surfaces
-// (tracer_scene.h), so a ray finds them as it finds the scene's meshes.
+// kSurface): rect (a parallelogram), disk and sphere lights; emissive meshes are in
+// mesh_emitter.h. The tracer holds their surfaces (tracer_scene.h), so a ray finds them as it
+// finds the scene's meshes.
 //
 // Sampling: a rectangle (orthogonal edges) that looks large from p by solid angle, else by area; a
 // disk by area; a sphere uniformly within the cone it subtends. Importance: luminance x the
@@ -20,6 +21,13 @@
 #include "tracer_scene.h"
 
 namespace probebake {
+
+// The importance of a light of luminance `power` and emitting area `area` centred at `centre`,
+// seen from p: power x area / d^2, d^2 floored at the area so that points next to the light do
+// not weigh it without bound.
+inline double AreaImportance(double power, double area, const Vec3d& centre, const Vec3d& p) {
+  return power * area / std::max(LengthSquared(centre - p), area);
+}
 
 // What rect and disk lights share: a flat emitter, one-sided (toward its normal) or two-sided.
 class PlanarEmitter {
@@ -72,7 +80,7 @@ class RectEmitter : public PlanarEmitter {
       for (const Vec3d& q : corners_) below = below && Dot(q - p, *n) <= 0;
       if (below) return 0;
     }
-    return power_ * area_ / std::max(LengthSquared(centre_ - p), area_);
+    return AreaImportance(power_, area_, centre_, p);
   }
   bool Sample(const Vec3d& p, const Vec3d* n, const Vec2d& u, LightSample* s) const;
   // A ray from p along wi hit the light at hit.t; pmf: the probability of choosing it.
@@ -99,7 +107,7 @@ class DiskEmitter : public PlanarEmitter {
   double Importance(const Vec3d& p, const Vec3d* n) const {
     if (Behind(p, centre_)) return 0;
     if (n && Dot(centre_ - p, *n) <= -radius_) return 0;
-    return power_ * area_ / std::max(LengthSquared(centre_ - p), area_);
+    return AreaImportance(power_, area_, centre_, p);
   }
   bool Sample(const Vec3d& p, const Vec3d* n, const Vec2d& u, LightSample* s) const;
   bool EvalHit(const Vec3d& p, const Vec3d& wi, const SurfaceHit& hit, double pmf,
@@ -125,8 +133,8 @@ class SphereEmitter {
     const double d2 = LengthSquared(centre_ - p);
     if (d2 <= radius_ * radius_) return 0;
     if (n && Dot(centre_ - p, *n) <= -radius_) return 0;
-    const double disk = std::numbers::pi * radius_ * radius_;
-    return power_ * disk / std::max(d2, disk);
+    // Seen from afar, its emitting area is a disk.
+    return AreaImportance(power_, std::numbers::pi * radius_ * radius_, centre_, p);
   }
   bool Sample(const Vec3d& p, const Vec3d* n, const Vec2d& u, LightSample* s) const;
   bool EvalHit(const Vec3d& p, const Vec3d& wi, const SurfaceHit& hit, double pmf,

@@ -1,6 +1,7 @@
 #include "light_set.h"
 
 #include <algorithm>
+#include <optional>
 #include <variant>
 
 #include "probebake/base/check.h"

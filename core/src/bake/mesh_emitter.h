@@ -7,7 +7,9 @@
 
 #include <algorithm>
 #include <optional>
+#include <span>
 
+#include "area_emitters.h"
 #include "light_sample.h"
 #include "light_tree.h"
 #include "probebake/math/vec3.h"
@@ -30,7 +32,7 @@ class MeshEmitter {
 
   double Importance(const Vec3d& p, const Vec3d* n) const {
     if (n && BoundsBelow(p, *n)) return 0;
-    return power_ * area_ / std::max(LengthSquared(centre_ - p), area_);
+    return AreaImportance(power_, area_, centre_, p);
   }
   bool Sample(const Vec3d& p, const Vec3d* n, const Vec2d& u, LightSample* s) const;
   // A ray from p along wi hit one of its triangles (hit.ng, hit.t); pmf: the probability of
