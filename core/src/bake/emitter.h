@@ -42,29 +42,48 @@
 
 namespace probebake {
 
+// The parts of EmitterKind: what every kind has, and the evaluations of each family.
 template <typename T>
-concept EmitterKind = requires(const T& e, const Vec3d& p, const Vec3d* n, LightTree::Item* item) {
+concept EmitterCommon = requires(const T& e, const Vec3d& p, const Vec3d* n,
+                                 LightTree::Item* item) {
   { T::kFamily } -> std::convertible_to<EmitterFamily>;
   { e.power() } -> std::same_as<double>;
   { e.Importance(p, n) } -> std::same_as<double>;
   { e.TreeItem(item) } -> std::same_as<bool>;
+};
+template <typename T>
+concept SampledEmitter = requires(const T& e, const Vec3d& p, const Vec3d* n, const Vec2d& u,
+                                  LightSample* s) {
+  { e.Sample(p, n, u, s) } -> std::same_as<bool>;
+};
+template <typename T>
+concept DeltaEmitter = requires(const T& e, const Vec3d& p, LightSample* s) {
+  { e.EvalDelta(p, s) } -> std::same_as<bool>;
+};
+template <typename T>
+concept SurfaceEmitter = requires(const T& e, const Vec3d& p, const SurfaceHit& hit,
+                                  LightHit* out) {
+  { e.EvalHit(p, p, hit, 1.0, out) } -> std::same_as<bool>;
+};
+template <typename T>
+concept DistantEmitter = requires(const T& e, const Vec3d& wi, const Vec3d* n, LightHit* out) {
+  { e.EvalEscaped(wi, n, 1.0, out) } -> std::same_as<bool>;
+};
+
+// Whether T has its family's evaluations: EvalDelta, or Sample and EvalHit or EvalEscaped.
+template <typename T>
+constexpr bool HasFamilyEvaluations() {
+  if constexpr (T::kFamily == EmitterFamily::kDelta) {
+    return DeltaEmitter<T>;
+  } else if constexpr (T::kFamily == EmitterFamily::kSurface) {
+    return SampledEmitter<T> && SurfaceEmitter<T>;
+  } else {
+    return SampledEmitter<T> && DistantEmitter<T>;
+  }
 }
-&&(T::kFamily == EmitterFamily::kDelta ||
-   requires(const T& e, const Vec3d& p, const Vec3d* n, const Vec2d& u, LightSample* s) {
-     { e.Sample(p, n, u, s) } -> std::same_as<bool>;
-   }) &&
-    (T::kFamily != EmitterFamily::kDelta ||
-     requires(const T& e, const Vec3d& p, LightSample* s) {
-       { e.EvalDelta(p, s) } -> std::same_as<bool>;
-     }) &&
-    (T::kFamily != EmitterFamily::kSurface ||
-     requires(const T& e, const Vec3d& p, const SurfaceHit& hit, LightHit* out) {
-       { e.EvalHit(p, p, hit, 1.0, out) } -> std::same_as<bool>;
-     }) &&
-    (T::kFamily != EmitterFamily::kDistant ||
-     requires(const T& e, const Vec3d& wi, const Vec3d* n, LightHit* out) {
-       { e.EvalEscaped(wi, n, 1.0, out) } -> std::same_as<bool>;
-     });
+
+template <typename T>
+concept EmitterKind = EmitterCommon<T> && HasFamilyEvaluations<T>();
 
 class Emitter {
  public:
