@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string_view>
 
 #include "bench_util.h"
@@ -35,6 +36,20 @@ std::string Pct(double fraction, int digits = 3) {
 std::string Num(double v, int digits = 3) {
   if (!std::isfinite(v)) return "-";
   return Format("%.*g", digits, v);
+}
+
+// The scaling section's figures: the best (least) time of each set of repeats; nullopt when the
+// scaling was not measured.
+struct ScalingBest {
+  double wall1, wall2, cpu1, cpu2;
+};
+std::optional<ScalingBest> BestOf(const ScalingInfo& sc) {
+  if (sc.wall1.empty() || sc.wall2.empty() || sc.cpu1.empty() || sc.cpu2.empty())
+    return std::nullopt;
+  return ScalingBest{*std::min_element(sc.wall1.begin(), sc.wall1.end()),
+                     *std::min_element(sc.wall2.begin(), sc.wall2.end()),
+                     *std::min_element(sc.cpu1.begin(), sc.cpu1.end()),
+                     *std::min_element(sc.cpu2.begin(), sc.cpu2.end())};
 }
 
 // ---- curves ----
@@ -412,11 +427,8 @@ std::string Markdown(const BenchResults& r) {
         tp.scene.c_str(), tp.tracerCpuMrays, tp.tracerCpuMrays / raw->cpuMraysPerSecond,
         samplingMrays / raw->cpuMraysPerSecond, PairedText(tp.pairedFractions).c_str());
   }
-  if (!r.scaling.wall1.empty()) {
-    const double w1 = *std::min_element(r.scaling.wall1.begin(), r.scaling.wall1.end());
-    const double w2 = *std::min_element(r.scaling.wall2.begin(), r.scaling.wall2.end());
-    const double c1 = *std::min_element(r.scaling.cpu1.begin(), r.scaling.cpu1.end());
-    const double c2 = *std::min_element(r.scaling.cpu2.begin(), r.scaling.cpu2.end());
+  if (const std::optional<ScalingBest> best = BestOf(r.scaling)) {
+    const auto [w1, w2, c1, c2] = *best;
     md += Format(
         "- Scaling (demo): %.2fx probes/s from 1 to 2 threads; a perfectly parallel raw "
         "Embree loop reached %.2fx at the same time (load average %.2f), so the bake scales at "
@@ -695,12 +707,9 @@ std::string Markdown(const BenchResults& r) {
   }
 
   md += "\n## Scaling\n\n";
-  if (!r.scaling.wall1.empty()) {
+  if (const std::optional<ScalingBest> best = BestOf(r.scaling)) {
     const ScalingInfo& sc = r.scaling;
-    const double w1 = *std::min_element(sc.wall1.begin(), sc.wall1.end());
-    const double w2 = *std::min_element(sc.wall2.begin(), sc.wall2.end());
-    const double c1 = *std::min_element(sc.cpu1.begin(), sc.cpu1.end());
-    const double c2 = *std::min_element(sc.cpu2.begin(), sc.cpu2.end());
+    const auto [w1, w2, c1, c2] = *best;
     md += Format(
         "%s scene, %lld samples/probe, %lld probes, interleaved 1- and 2-thread bakes (%zu "
         "each; bits identical between them), load average %.2f when it started.\n\n| threads | "
@@ -1105,11 +1114,8 @@ std::string ThroughputBlock(const BenchResults& r) {
 std::string ScalingMemoryBlock(const BenchResults& r) {
   std::string md;
   const ScalingInfo& sc = r.scaling;
-  if (!sc.wall1.empty() && !sc.wall2.empty()) {
-    const double w1 = *std::min_element(sc.wall1.begin(), sc.wall1.end());
-    const double w2 = *std::min_element(sc.wall2.begin(), sc.wall2.end());
-    const double c1 = *std::min_element(sc.cpu1.begin(), sc.cpu1.end());
-    const double c2 = *std::min_element(sc.cpu2.begin(), sc.cpu2.end());
+  if (const std::optional<ScalingBest> best = BestOf(sc)) {
+    const auto [w1, w2, c1, c2] = *best;
     md += Format(
         "- Two threads bake the %s %.2f× as fast as one (bit-identical results); raw Embree's "
         "own loop reached %.2f× at the same time, and the bake kept %.2f× as many CPUs busy.\n",
