@@ -1,13 +1,15 @@
 #!/usr/bin/env bash
-# Regenerates the accuracy and speed benchmark (SPEC 7, tests/bench/README.md): installs the
-# dependencies, builds probebake-bench into $BUILD_DIR (default build/) and runs it. The full run
-# writes tests/bench/results/ (results.md, results.csv, results.json, adaptive_probes.csv,
-# error_vs_time_<scene>.svg) in about 5 minutes on an idle 2-core machine (297 s on 2026-12-01,
-# references included; a loaded machine takes several times that), less once the
-# reference bakes are cached (${XDG_CACHE_HOME:-~/.cache}/probebake-bench, keyed by job digest).
+# Regenerates the accuracy and speed benchmark (docs/accuracy-and-speed.md, tests/bench/README.md):
+# installs the dependencies, builds probebake-bench into $BUILD_DIR (default build/) and runs it.
+# The full run writes tests/bench/results/ (results.md, results.csv, results.json,
+# adaptive_probes.csv, error_vs_time_<scene>.svg) and the figures README.md and
+# docs/accuracy-and-speed.md embed, in about 5 minutes on an idle 2-core machine (references
+# included; a loaded machine takes several times that), less once the reference bakes are cached
+# (${XDG_CACHE_HOME:-~/.cache}/probebake-bench, keyed by job digest).
 #
-#   scripts/bench.sh            # full run
-#   scripts/bench.sh --quick    # smoke check, ~1-2 minutes; reports in $BUILD_DIR/bench-work/quick-results
+#   scripts/bench.sh              # full run
+#   scripts/bench.sh --quick      # smoke check, ~1-2 minutes; reports in $BUILD_DIR/bench-work/quick-results
+#   scripts/bench.sh --docs-only  # only rewrite the documents' figures from tests/bench/results/results.json
 #
 # Other arguments go to probebake-bench (--scenes demo,courtyard, --no-memory, --repeats N, ...).
 set -euo pipefail

@@ -1,14 +1,17 @@
-// probebake-bench: the accuracy and speed benchmark of SPEC 7 (issue 5). Run by
+// probebake-bench: the accuracy and speed benchmark (docs/accuracy-and-speed.md). Run by
 // scripts/bench.sh; see tests/bench/README.md for what it measures and how.
 //
 //   probebake-bench [--quick] [--out DIR] [--cache DIR] [--work DIR] [--source DIR]
 //                   [--repeats N] [--scenes a,b] [--no-memory] [--no-embree] [--scaling-only]
+//                   [--docs-only]
 //
 // Bakes every scene (bench_scenes.h) at a ladder of sample counts for several estimator
 // configurations, adaptive targets and the quality presets, at one thread each (so time measures
 // work, not scheduling), compares each bake with a reference (bench_reference.h), measures raw
 // Embree on the same rays (bench_raw_embree.h), 1- vs 2-thread scaling, and the peak memory of a
-// dense 128^3 order-2 bake in a child process, then writes the reports (bench_report.h).
+// dense 128^3 order-2 bake in a child process, then writes the reports (bench_report.h). A full
+// run into the source tree also rewrites the figures README.md and docs/accuracy-and-speed.md
+// embed; --docs-only rewrites them from the committed results.json alone.
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -51,7 +54,8 @@
 namespace probebake::bench {
 namespace {
 
-// Reference sample counts are this multiple of the largest count compared with them (SPEC 7).
+// Reference sample counts are this multiple of the largest count compared with them: a reference
+// bake's own error is then an eighth of the bakes' it judges.
 constexpr int64_t kReferenceFactor = 64;
 // Depth of the ladder's bakes, and of the "deep" reference that stands for unlimited depth.
 constexpr int kLadderDepth = 8;
@@ -71,6 +75,11 @@ struct Options {
   std::vector<std::string> scenes;
   bool memory = true, embree = true;
   bool scalingOnly = false;  // only the 1- vs 2-thread scaling (for a quiet moment)
+  // Rebuild the documents' generated blocks from <out>/results.json; no bake.
+  bool docsOnly = false;
+  // The reports go to the source's tests/bench/results: the documents embedding their figures
+  // (kBenchDocuments) are then updated too.
+  bool committedResults = false;
 };
 
 struct Config {
@@ -686,6 +695,20 @@ absl::Status Run(const Options& opt) {
   results.totalSeconds = WallSeconds() - runStart;
   PB_RETURN_IF_ERROR(WriteReports(results, opt.out));
   log->info("reports written to {} in {:.0f} s", opt.out, results.totalSeconds);
+  if (opt.committedResults) {
+    PB_RETURN_IF_ERROR(UpdateDocuments(results, opt.source));
+    log->info("figures updated in README.md and docs/accuracy-and-speed.md");
+  }
+  return absl::OkStatus();
+}
+
+absl::Status UpdateDocumentsFromJson(const Options& opt) {
+  PB_ASSIGN_OR_RETURN(const BenchResults results, ReadResultsJson(opt.out + "/results.json"));
+  PB_RETURN_IF_ERROR(UpdateDocuments(results, opt.source));
+  Logger("bench")->info(
+      "figures of {}/results.json written into README.md and "
+      "docs/accuracy-and-speed.md",
+      opt.out);
   return absl::OkStatus();
 }
 
@@ -693,7 +716,7 @@ int Usage() {
   std::fprintf(stderr,
                "usage: probebake-bench [--quick] [--out DIR] [--cache DIR] [--work DIR] "
                "[--source DIR] [--repeats N] [--scenes a,b] [--no-memory] [--no-embree] "
-               "[--scaling-only]\n");
+               "[--scaling-only] [--docs-only]\n");
   return 2;
 }
 
@@ -732,6 +755,8 @@ int main(int argc, char** argv) {
       opt.embree = false;
     } else if (a == "--scaling-only") {
       opt.scalingOnly = true;
+    } else if (a == "--docs-only") {
+      opt.docsOnly = true;
     } else {
       return Usage();
     }
@@ -740,8 +765,10 @@ int main(int argc, char** argv) {
   // Quick runs are smoke checks: their reports stay in the work folder, not in the committed
   // results.
   if (opt.out.empty() && opt.scalingOnly) opt.out = opt.work + "/scaling-results";
-  if (opt.out.empty())
+  if (opt.out.empty()) {
+    opt.committedResults = !opt.quick && !opt.scalingOnly;
     opt.out = opt.quick ? opt.work + "/quick-results" : opt.source + "/tests/bench/results";
+  }
   if (opt.cache.empty()) opt.cache = DefaultCacheDir();
   std::filesystem::create_directories(opt.work);
   std::filesystem::create_directories(opt.cache);
@@ -749,7 +776,7 @@ int main(int argc, char** argv) {
   // The baker logs every bake at info; the benchmark's own lines are what matter here.
   probebake::Logger("bake")->set_level(spdlog::level::warn);
   probebake::Logger("job")->set_level(spdlog::level::warn);
-  const absl::Status status = Run(opt);
+  const absl::Status status = opt.docsOnly ? UpdateDocumentsFromJson(opt) : Run(opt);
   if (!status.ok()) {
     std::fprintf(stderr, "probebake-bench: %s\n", std::string(status.message()).c_str());
     return 1;

@@ -1,4 +1,4 @@
-// Errors of a bake against a reference (SPEC 7), per probe and summarised over probes.
+// Errors of a bake against a reference, per probe and summarised over probes.
 //
 // Per probe (valid in both), with L the bake's order and the reference truncated to order L, so
 // the error is the estimator's and not SH truncation's:

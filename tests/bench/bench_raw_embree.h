@@ -1,4 +1,4 @@
-// The practical ceiling of a CPU baker (SPEC 7): Embree tracing a scene's probe rays with nothing
+// The practical ceiling of a CPU baker: Embree tracing a scene's probe rays with nothing
 // else around it. The scene is built as the tracer builds it (tracer_scene.cpp: the same meshes in
 // the same local coordinates, area lights as geometry, RTC_SCENE_FLAG_ROBUST, build quality
 // HIGH), and rays are made up front so the timed loop only fills Embree's ray structures and

@@ -1,4 +1,4 @@
-// References the benchmark measures errors against (SPEC 7): the exact projection where a closed
+// References the benchmark measures errors against: the exact projection where a closed
 // form exists, otherwise a bake with at least 64x the samples of anything compared with it,
 // cached on disk under its job digest (which includes the baker version, so a baker change that
 // alters numbers invalidates it).

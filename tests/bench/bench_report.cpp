@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <optional>
+#include <string_view>
 
 #include "bench_util.h"
 #include "core/src/bake/light_set.h"
@@ -34,6 +36,20 @@ std::string Pct(double fraction, int digits = 3) {
 std::string Num(double v, int digits = 3) {
   if (!std::isfinite(v)) return "-";
   return Format("%.*g", digits, v);
+}
+
+// The scaling section's figures: the best (least) time of each set of repeats; nullopt when the
+// scaling was not measured.
+struct ScalingBest {
+  double wall1, wall2, cpu1, cpu2;
+};
+std::optional<ScalingBest> BestOf(const ScalingInfo& sc) {
+  if (sc.wall1.empty() || sc.wall2.empty() || sc.cpu1.empty() || sc.cpu2.empty())
+    return std::nullopt;
+  return ScalingBest{*std::min_element(sc.wall1.begin(), sc.wall1.end()),
+                     *std::min_element(sc.wall2.begin(), sc.wall2.end()),
+                     *std::min_element(sc.cpu1.begin(), sc.cpu1.end()),
+                     *std::min_element(sc.cpu2.begin(), sc.cpu2.end())};
 }
 
 // ---- curves ----
@@ -358,7 +374,7 @@ std::string Markdown(const BenchResults& r) {
       r.generator.c_str(), r.loadStart, r.loadEnd, r.totalSeconds);
   md +=
       "Every bake runs on one thread; its time includes everything `Bake` does (BVH build, "
-      "placement and validity rays, light tables, sampling). Errors (SPEC 7) are per probe, "
+      "placement and validity rays, light tables, sampling). Errors are per probe, "
       "then averaged over probes: the relative L2 error of the reconstructed irradiance over "
       "the sphere of normals (quadrature), the relative L2 error of the radiance SH "
       "coefficients, and the relative error of the luminance of L0, which is what the "
@@ -411,11 +427,8 @@ std::string Markdown(const BenchResults& r) {
         tp.scene.c_str(), tp.tracerCpuMrays, tp.tracerCpuMrays / raw->cpuMraysPerSecond,
         samplingMrays / raw->cpuMraysPerSecond, PairedText(tp.pairedFractions).c_str());
   }
-  if (!r.scaling.wall1.empty()) {
-    const double w1 = *std::min_element(r.scaling.wall1.begin(), r.scaling.wall1.end());
-    const double w2 = *std::min_element(r.scaling.wall2.begin(), r.scaling.wall2.end());
-    const double c1 = *std::min_element(r.scaling.cpu1.begin(), r.scaling.cpu1.end());
-    const double c2 = *std::min_element(r.scaling.cpu2.begin(), r.scaling.cpu2.end());
+  if (const std::optional<ScalingBest> best = BestOf(r.scaling)) {
+    const auto [w1, w2, c1, c2] = *best;
     md += Format(
         "- Scaling (demo): %.2fx probes/s from 1 to 2 threads; a perfectly parallel raw "
         "Embree loop reached %.2fx at the same time (load average %.2f), so the bake scales at "
@@ -536,7 +549,7 @@ std::string Markdown(const BenchResults& r) {
       "times the sun's share to one sample. Until a batch has hit it, the estimate is low and "
       "its batch spread is small, so its error looks moderate and its std_error is far too "
       "small (honesty >> 1); once a probe hits it, its error jumps (the spikes of the naive "
-      "curves). The mean over probes of these heavy-tailed errors is what SPEC 7 asks for; "
+      "curves). The mean over probes of these heavy-tailed errors is the headline figure; "
       "the median column shows the typical probe. Time-to-error for the naive estimator is "
       "extrapolated from its last point with error ~ t^-1/2.\n"
       "- Each SH order is compared with the reference truncated to that order, so order 1 "
@@ -694,12 +707,9 @@ std::string Markdown(const BenchResults& r) {
   }
 
   md += "\n## Scaling\n\n";
-  if (!r.scaling.wall1.empty()) {
+  if (const std::optional<ScalingBest> best = BestOf(r.scaling)) {
     const ScalingInfo& sc = r.scaling;
-    const double w1 = *std::min_element(sc.wall1.begin(), sc.wall1.end());
-    const double w2 = *std::min_element(sc.wall2.begin(), sc.wall2.end());
-    const double c1 = *std::min_element(sc.cpu1.begin(), sc.cpu1.end());
-    const double c2 = *std::min_element(sc.cpu2.begin(), sc.cpu2.end());
+    const auto [w1, w2, c1, c2] = *best;
     md += Format(
         "%s scene, %lld samples/probe, %lld probes, interleaved 1- and 2-thread bakes (%zu "
         "each; bits identical between them), load average %.2f when it started.\n\n| threads | "
@@ -967,7 +977,283 @@ std::string Json(const BenchResults& r) {
   return j;
 }
 
+// ---- blocks embedded in the documents (kBenchDocuments) ----
+
+// Scenes as the documents name them.
+std::string SceneTitle(const std::string& scene) {
+  if (scene == "sky_sphere") return "closed-form scene";
+  if (scene == "demo") return "demo room";
+  return scene;
+}
+
+std::string TimeToErrorBlock(const BenchResults& r) {
+  const std::pair<const char*, const char*> configs[] = {
+      {"naive", "naive: uniform directions, no NEE, independent numbers"},
+      {"nee_sobol", "NEE only, Sobol"},
+      {"nee_mis_independent", "NEE + MIS, independent numbers"},
+      {"nee_mis_sobol", "**NEE + MIS, Sobol (the default)**"}};
+  const double levels[] = {0.1, 0.05, 0.02};
+  std::string md = "| demo room, CPU time to a mean error of |";
+  for (double e : levels) md += Format(" %s |", Pct(e, 2).c_str());
+  md += "\n| --- | --- | --- | --- |\n";
+  for (const auto& [config, label] : configs) {
+    const std::vector<Point> curve = Curve(r, "demo", config);
+    if (curve.empty()) continue;
+    const bool bold = std::string(config) == "nee_mis_sobol";
+    md += Format("| %s |", label);
+    for (double e : levels) {
+      const std::string t = TimeText(TimeToError(curve, e));
+      md += bold ? Format(" **%s** |", t.c_str()) : Format(" %s |", t.c_str());
+    }
+    md += "\n";
+  }
+  md += "\n(`~`: extrapolated past the largest sample count with error ∝ time^-1/2.)\n";
+  return md;
+}
+
+std::string SpeedupsBlock(const BenchResults& r) {
+  std::string parts;
+  for (const SceneInfo& sc : r.scenes) {
+    const std::vector<Point> naive = Curve(r, sc.name, "naive"),
+                             best = Curve(r, sc.name, "nee_mis_sobol");
+    std::string factors;
+    for (double e : {0.1, 0.05}) {
+      const TimeTo a = TimeToError(naive, e), b = TimeToError(best, e);
+      if (a.how == Reach::kNone || b.how == Reach::kNone) continue;
+      const double ratio = a.time / b.time;
+      factors += Format(ratio >= 10 ? "%s%.0f×" : "%s%.2g×", factors.empty() ? "" : " and ", ratio);
+    }
+    if (factors.empty()) continue;
+    parts += Format("%s%s on the %s", parts.empty() ? "" : ", ", factors.c_str(),
+                    SceneTitle(sc.name).c_str());
+  }
+  std::string slopes;
+  for (const SceneInfo& sc : r.scenes)
+    slopes += Format("%s%.2f (%s)", slopes.empty() ? "" : ", ",
+                     ErrorSlope(r, sc.name, "nee_mis_sobol"), SceneTitle(sc.name).c_str());
+  return Format(
+      "Against the naive estimator, NEE + MIS with Sobol reaches 10%% and 5%% error sooner by %s "
+      "(extrapolated where the naive one never got there). Its error falls as samples to the "
+      "power %s: -0.5 is plain Monte Carlo's rate.\n",
+      parts.c_str(), slopes.c_str());
+}
+
+std::string PresetsBlock(const BenchResults& r) {
+  std::string md = "| preset | samples (cap) / depth / target |";
+  for (const SceneInfo& sc : r.scenes)
+    md += Format(" %s: error, CPU ms per probe |", SceneTitle(sc.name).c_str());
+  md += "\n| --- | --- |";
+  for (size_t i = 0; i < r.scenes.size(); ++i) md += " --- |";
+  md += "\n";
+  for (const char* preset : {"PREVIEW", "PRODUCTION", "REFERENCE"}) {
+    const BakeRow* any = nullptr;
+    std::string cells;
+    for (const SceneInfo& sc : r.scenes) {
+      const BakeRow* row = FindRow(r, sc.name, std::string("preset_") + preset);
+      if (!any) any = row;
+      cells += row ? Format(" %s, %.2g |", Pct(row->error.meanIrradianceRel, 2).c_str(),
+                            1e3 * row->cpuSeconds / double(std::max<int64_t>(row->probes, 1)))
+                   : " - |";
+    }
+    if (!any) continue;
+    md += Format(
+        "| `%s` | %lld / %d / %s |%s\n", preset, (long long)any->samplesPerProbe, any->maxDepth,
+        any->targetRelError > 0 ? Pct(any->targetRelError, 2).c_str() : "none", cells.c_str());
+  }
+  md +=
+      "\nErrors are against depth-64 references, so they include each preset's depth "
+      "truncation.\n";
+  return md;
+}
+
+std::string AdaptiveBlock(const BenchResults& r) {
+  std::string md = Format(
+      "| scene | target | mean samples per probe (cap %lld) | RMS measured error / target |\n"
+      "| --- | --- | --- | --- |\n",
+      r.ladder.empty() ? 0LL : (long long)r.ladder.back());
+  for (const BakeRow& row : r.rows) {
+    if (row.group != "adaptive" || row.batches != 64) continue;
+    md += Format("| %s | %s | %.0f | %.2f |\n", SceneTitle(row.scene).c_str(),
+                 Pct(row.targetRelError, 2).c_str(), row.error.meanSamples,
+                 row.error.rmsL0Rel / row.targetRelError);
+  }
+  return md;
+}
+
+std::string HonestyBlock(const BenchResults& r) {
+  std::vector<double> honesty;
+  for (const BakeRow& row : r.rows)
+    if (row.group == "ladder" && row.config != "naive") honesty.push_back(row.error.honestyL0);
+  if (honesty.empty()) return "Not measured.\n";
+  return Format(
+      "Measured / reported error of L0, over every bake of the sample-count ladders but the naive "
+      "estimator's: median %.2f, from %.2f to %.2f.\n",
+      Median(honesty), *std::min_element(honesty.begin(), honesty.end()),
+      *std::max_element(honesty.begin(), honesty.end()));
+}
+
+std::string ThroughputBlock(const BenchResults& r) {
+  std::string head = "| throughput, one thread |", rule = "| --- |", mrays, fraction, paired;
+  for (const ThroughputInfo& tp : r.throughput) {
+    const RawRate* raw = tp.raw.Find("probe random", "rtcIntersect1", 1);
+    if (!raw) continue;
+    head += Format(" %s |", SceneTitle(tp.scene).c_str());
+    rule += " --- |";
+    mrays += Format(" %.3g |", tp.tracerCpuMrays);
+    fraction += Format(" %.2f |", tp.tracerCpuMrays / raw->cpuMraysPerSecond);
+    std::vector<double> f = tp.pairedFractions;
+    std::sort(f.begin(), f.end());
+    paired += f.empty() ? " - |" : Format(" %.2f (%.2f–%.2f) |", Median(f), f.front(), f.back());
+  }
+  return head + "\n" + rule +
+         "\n| tracer Mrays per CPU-second (every ray, shadow rays included) |" + mrays +
+         "\n| as a fraction of raw Embree (`rtcIntersect1`, the same probes' rays) |" + fraction +
+         "\n| the same in back-to-back pairs on one CPU: median (range) |" + paired + "\n";
+}
+
+std::string ScalingMemoryBlock(const BenchResults& r) {
+  std::string md;
+  const ScalingInfo& sc = r.scaling;
+  if (const std::optional<ScalingBest> best = BestOf(sc)) {
+    const auto [w1, w2, c1, c2] = *best;
+    md += Format(
+        "- Two threads bake the %s %.2f× as fast as one (bit-identical results); raw Embree's "
+        "own loop reached %.2f× at the same time, and the bake kept %.2f× as many CPUs busy.\n",
+        SceneTitle(sc.scene).c_str(), w1 / w2, sc.rawRatio, (w1 / w2) * (c2 / c1));
+  }
+  const MemoryInfo& m = r.memory;
+  if (m.measured && m.shBytes > 0)
+    md += Format(
+        "- A dense %lld-probe order-2 bake with irradiance peaks at %.2f× the size of its SH data "
+        "(%.0f MiB); its .vdb is %.0f MiB.\n",
+        (long long)m.probes, double(m.peakBake) / double(m.shBytes), m.peakBake / kMiB,
+        m.vdbBytes / kMiB);
+  return md.empty() ? "Not measured.\n" : md;
+}
+
+// Light a depth limit leaves out: the mean signed L0 difference against the deep reference at every
+// depth the bench tried, for the scenes where some depth leaves out more than 3 standard errors.
+std::string DepthBlock(const BenchResults& r) {
+  std::vector<std::string> scenes;
+  std::vector<int> depths;
+  for (const SceneInfo& sc : r.scenes) {
+    bool resolved = false;
+    for (const BakeRow& row : r.rows) {
+      if (row.scene != sc.name || row.group != "depth") continue;
+      resolved = resolved || std::abs(row.error.meanSignedL0) > 3 * row.error.meanSignedL0StdError;
+      if (std::find(depths.begin(), depths.end(), row.maxDepth) == depths.end())
+        depths.push_back(row.maxDepth);
+    }
+    if (resolved) scenes.push_back(sc.name);
+  }
+  if (scenes.empty()) return "Not measured.\n";
+  std::sort(depths.begin(), depths.end());
+  std::string md = "| maxDepth |";
+  for (const std::string& scene : scenes) md += Format(" %s |", SceneTitle(scene).c_str());
+  md += "\n| --- |";
+  for (size_t i = 0; i < scenes.size(); ++i) md += " --- |";
+  md += "\n";
+  for (int depth : depths) {
+    md += Format("| %d |", depth);
+    for (const std::string& scene : scenes) {
+      const BakeRow* found = nullptr;
+      for (const BakeRow& row : r.rows)
+        if (row.scene == scene && row.group == "depth" && row.maxDepth == depth) found = &row;
+      md += found ? Format(" %+.2g%% ± %.2g%% |", 100 * found->error.meanSignedL0,
+                           100 * found->error.meanSignedL0StdError)
+                  : " - |";
+    }
+    md += "\n";
+  }
+  return md;
+}
+
+// Other settings against the default, as CPU time to a 5% error on the demo room.
+std::string SettingsBlock(const BenchResults& r) {
+  const TimeTo base = TimeToError(Curve(r, "demo", "nee_mis_sobol"), 0.05);
+  if (base.how == Reach::kNone) return "Not measured.\n";
+  std::string md = "| demo room, CPU time to a 5% error, against the default |  |\n| --- | --- |\n";
+  const std::pair<const char*, const char*> configs[] = {
+      {"order1", "SH order 1 (against its own truncation)"},
+      {"order3", "SH order 3"},
+      {"nee_mis_sobol_no_rr", "Russian roulette off"},
+      {"nee_mis_independent", "independent numbers instead of Sobol"}};
+  for (const auto& [config, label] : configs) {
+    const TimeTo t = TimeToError(Curve(r, "demo", config), 0.05);
+    if (t.how == Reach::kNone) continue;
+    md += Format("| %s | %s%.2f× |\n", label,
+                 t.how == Reach::kExtrapolated || base.how == Reach::kExtrapolated ? "~" : "",
+                 t.time / base.time);
+  }
+  return md;
+}
+
+std::map<std::string, std::string> DocBlocks(const BenchResults& r, const std::string& root) {
+  std::map<std::string, std::string> blocks;
+  blocks["run"] = Format(
+      "Figures of the last bench run (`scripts/bench.sh`%s: %s, %s; host with %d hardware "
+      "threads, load average %.2f at the start). Times are CPU seconds on one core; an error is "
+      "the mean over probes of the relative L2 error of the reconstructed irradiance over the "
+      "sphere of normals, against a reference. Every figure and the plots: "
+      "[tests/bench/results/results.md](%stests/bench/results/results.md).\n",
+      r.quick ? " --quick" : "", r.date.c_str(), r.generator.c_str(), r.hardwareThreads,
+      r.loadStart, root.c_str());
+  blocks["time-to-error"] = TimeToErrorBlock(r);
+  blocks["speedups"] = SpeedupsBlock(r);
+  blocks["presets"] = PresetsBlock(r);
+  blocks["adaptive"] = AdaptiveBlock(r);
+  blocks["honesty"] = HonestyBlock(r);
+  blocks["throughput"] = ThroughputBlock(r);
+  blocks["scaling-memory"] = ScalingMemoryBlock(r);
+  blocks["depth"] = DepthBlock(r);
+  blocks["settings"] = SettingsBlock(r);
+  return blocks;
+}
+
+// `text` with the content of every "<!-- bench:NAME -->" ... "<!-- /bench:NAME -->" pair replaced
+// by blocks[NAME]; `document` names the file in errors.
+absl::StatusOr<std::string> SpliceBlocks(const std::string& text,
+                                         const std::map<std::string, std::string>& blocks,
+                                         const std::string& document) {
+  static constexpr std::string_view kOpen = "<!-- bench:", kClose = " -->";
+  std::string out;
+  size_t at = 0;
+  while (true) {
+    const size_t open = text.find(kOpen, at);
+    if (open == std::string::npos) break;
+    const size_t nameEnd = text.find(kClose, open + kOpen.size());
+    if (nameEnd == std::string::npos)
+      return absl::InvalidArgumentError(document + ": unterminated bench marker");
+    const std::string name = text.substr(open + kOpen.size(), nameEnd - open - kOpen.size());
+    const auto block = blocks.find(name);
+    if (block == blocks.end())
+      return absl::InvalidArgumentError(document + ": unknown bench block \"" + name + "\"");
+    const std::string end = "<!-- /bench:" + name + " -->";
+    const size_t startLine = text.find('\n', nameEnd);
+    const size_t close = text.find(end, nameEnd);
+    if (startLine == std::string::npos || close == std::string::npos || close < startLine)
+      return absl::InvalidArgumentError(document + ": bench block \"" + name + "\" has no " + end);
+    out += text.substr(at, startLine + 1 - at);
+    out += block->second;
+    at = close;
+  }
+  return out + text.substr(at);
+}
+
 }  // namespace
+
+absl::Status UpdateDocuments(const BenchResults& results, const std::string& sourceDir) {
+  for (const std::string document : kBenchDocuments) {
+    const std::string path = sourceDir + "/" + document;
+    PB_ASSIGN_OR_RETURN(const std::string text, ReadFileBytes(path));
+    // Links in the blocks are relative to the document's folder.
+    const std::string root = document.find('/') == std::string::npos ? "" : "../";
+    PB_ASSIGN_OR_RETURN(const std::string updated,
+                        SpliceBlocks(text, DocBlocks(results, root), document));
+    if (updated != text) PB_RETURN_IF_ERROR(WriteFileAtomic(path, updated));
+  }
+  return absl::OkStatus();
+}
 
 absl::Status WriteReports(const BenchResults& results, const std::string& dir) {
   std::filesystem::create_directories(dir);

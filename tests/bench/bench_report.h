@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "bench_metrics.h"
 #include "bench_raw_embree.h"
 
@@ -124,5 +125,24 @@ struct BenchResults {
 // Writes results.md, results.csv, results.json, adaptive_probes.csv and error_vs_time_<scene>.svg
 // into `dir`.
 absl::Status WriteReports(const BenchResults& results, const std::string& dir);
+
+// Reads back a results.json written by WriteReports: everything the document blocks below need
+// (the run, scenes, every bake row, throughput, scaling, memory). Not in the JSON, and so left
+// empty: the rows' labels and per-probe errors, the many-lights rows and raw Embree's probe count.
+// INVALID_ARGUMENT naming the path and the key when the file is not such a document.
+absl::StatusOr<BenchResults> ReadResultsJson(const std::string& path);
+
+// The documents that embed the last run's figures, relative to the source folder: README.md and
+// docs/accuracy-and-speed.md. Each marks a generated block as
+//   <!-- bench:NAME -->
+//   ...
+//   <!-- /bench:NAME -->
+// UpdateDocuments rewrites the text between every such pair from `results`, so those figures are
+// never typed by hand; the rest of each document is left as it is. Blocks: run (when, where,
+// what the figures mean), time-to-error (the demo room's table of estimators), speedups, presets,
+// adaptive, honesty, throughput, scaling-memory, depth, settings. INVALID_ARGUMENT naming the
+// document for an unknown block or a marker without its end.
+inline constexpr const char* kBenchDocuments[] = {"README.md", "docs/accuracy-and-speed.md"};
+absl::Status UpdateDocuments(const BenchResults& results, const std::string& sourceDir);
 
 }  // namespace probebake::bench

@@ -1,4 +1,4 @@
-// The benchmark's scenes (SPEC 7): each is a job file whose scene and probe grid are baked at
+// The benchmark's scenes: each is a job file whose scene and probe grid are baked at
 // many settings.
 //
 //  - sky_sphere (tests/bench/scenes/sky_sphere.json): a uniform sky over a black ground plane and

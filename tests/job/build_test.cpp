@@ -1,5 +1,5 @@
-// BuildBakeJob on whole jobs: the SPEC 4a example, grid and settings resolution, digests, file
-// references and asset sources.
+// BuildBakeJob on whole jobs: the example job (tests/data/job/example.json), grid and settings
+// resolution, digests, file references and asset sources.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -183,7 +183,7 @@ TEST(BuildBakeJob, UnusedFeaturesCostNothing) {
   EXPECT_FALSE(built->scene.medium.has_value());
 }
 
-// ---- Grid resolution (SPEC 4a) ----
+// ---- Grid resolution (docs/job-format.md) ----
 
 ProbeGrid GridOf(const std::string& gridJson) {
   const absl::StatusOr<BakeJob> built = BuildFromData(Patched(kGridOnly, "grid", gridJson));

@@ -1,4 +1,5 @@
-// Environment maps: 32-bit float OpenEXR lat-long images and their orientation (SPEC 4a).
+// Environment maps: 32-bit float OpenEXR lat-long images and their orientation
+// (docs/job-format.md).
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfEnvmap.h>
 #include <OpenEXR/ImfFrameBuffer.h>

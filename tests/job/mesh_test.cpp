@@ -264,8 +264,8 @@ TEST(MeshImport, BadFilesAreRejectedWithThePath) {
 }
 
 TEST(MeshImport, FilesAModelNamesAreNeverOpened) {
-  // A server must not open a path a request names (SPEC 8): a glTF's external buffer is refused
-  // even when the file exists (assimp used to read it from disk).
+  // A server must not open a path a request names (docs/service.md): a glTF's external buffer is
+  // refused even when the file exists (assimp used to read it from disk).
   TempDir dir;
   dir.Write("buffer.bin", GltfBuffer());
   dir.Write("external.gltf", GltfJson(dir.File("buffer.bin"), GltfBuffer().size()));
@@ -595,8 +595,8 @@ TEST(MeshImport, ZeroAreaTrianglesAreDropped) {
                             "scene.meshes[0]", "no triangle with a non-zero area"));
 }
 
-// SPEC 4a: a scene translated by 1e4 keeps its positions in double. 0.1 + 1e4 in float would be
-// 10000.099609375; in double it is the double nearest to 10000.1.
+// docs/job-format.md: a scene translated by 1e4 keeps its positions in double. 0.1 + 1e4 in float
+// would be 10000.099609375; in double it is the double nearest to 10000.1.
 TEST(MeshImport, TranslatedSceneKeepsDoublePrecision) {
   const absl::StatusOr<BakeJob> built =
       BuildInline("[0.1,0.2,0.3, 1.1,0.2,0.3, 0.1,1.2,0.3]", "[0,1,2]",

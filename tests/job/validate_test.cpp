@@ -1,4 +1,4 @@
-// ValidateJobSpec: every structural rejection names the exact field path (SPEC 6).
+// ValidateJobSpec: every structural rejection names the exact field path (docs/job-format.md).
 #include "probebake/job/validate.h"
 
 #include <gtest/gtest.h>

@@ -121,9 +121,9 @@ double SphericalBesselI(int l, double k) {
   return (1 / k + 3 / (k * k * k)) * s - 3 * c / (k * k);
 }
 
-// Y_i(d), i < 9, from SPEC 2's closed forms with exact constants (independent of the library's
-// basis, so a basis error would show as a bias below): sqrt(1/(4π)), sqrt(3/(4π)),
-// sqrt(15/(4π)), 3 sqrt(5/(16π)) (z² - 1/3), sqrt(15/(16π)) (x² - y²).
+// Y_i(d), i < 9, from the closed forms of docs/spherical-harmonics.md with exact constants
+// (independent of the library's basis, so a basis error would show as a bias below): sqrt(1/(4π)),
+// sqrt(3/(4π)), sqrt(15/(4π)), 3 sqrt(5/(16π)) (z² - 1/3), sqrt(15/(16π)) (x² - y²).
 std::array<double, 9> ReferenceSh2(const Vec3d& d) {
   const double pi = std::numbers::pi;
   const double k0 = std::sqrt(1 / (4 * pi)), k1 = std::sqrt(3 / (4 * pi));
@@ -170,7 +170,7 @@ TEST(Convergence, ShReferenceCoefficientsAreRight) {
                 1e-14 * 4 * std::numbers::pi * i)
         << "l " << l;
   }
-  // ReferenceSh2 against SPEC 2's test vector (given to 9 decimals).
+  // ReferenceSh2 against the documented test vector (given to 9 decimals).
   const std::array<double, 9> y = ReferenceSh2(Vec3d{0.48, 0.6, 0.64});
   const double spec[9] = {0.282094792,  -0.293161507, 0.312705608,  -0.234529206, 0.314653948,
                           -0.419538597, 0.072161590,  -0.335630878, -0.070797138};
@@ -292,9 +292,10 @@ std::string Describe(const ShConvergence& c) {
 //    (9 coefficients x 10 levels x 2 samplers = 180 t statistics with R - 1 = 255 dof, each
 //    beyond 5 with probability ~6e-7: family-wise 1e-4).
 // At N = 10000 (not a power of two: not a complete net, Sobol's worst case between powers) the
-// RMS relative error is printed for both; SPEC 9's google/spherical-harmonics figure, 9e-4 at
-// 10k random samples for order 2, is for an unstated function and metric, so it is context, not
-// a threshold. Ours must be below independent's by 5 combined sigmas of log2 RMS.
+// RMS relative error is printed for both; google/spherical-harmonics' random projection, measured
+// at 9e-4 with 10k random samples for order 2 when the project started, is for an unstated
+// function and metric, so it is context, not a threshold. Ours must be below independent's by 5
+// combined sigmas of log2 RMS.
 TEST(Convergence, SobolBeatsIndependentOnAllOrder2ShCoefficients) {
   const ShConvergence sobol = MeasureSh<SobolSampler>();
   const ShConvergence independent = MeasureSh<IndependentSampler>();

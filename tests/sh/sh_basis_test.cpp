@@ -16,8 +16,9 @@ using test::kDoubleEps;
 using test::kFloatEps;
 using test::kPi;
 
-// SPEC 2's test vector at d = (0.48, 0.6, 0.64) (a unit vector: 0.2304 + 0.36 + 0.4096 = 1).
-constexpr std::array<double, 25> kSpecVector = {
+// The test vector of docs/spherical-harmonics.md at d = (0.48, 0.6, 0.64), a unit vector
+// (0.2304 + 0.36 + 0.4096 = 1).
+constexpr std::array<double, 25> kTestVector = {
     0.282094792,                                                           // l = 0
     -0.293161507, 0.312705608,  -0.234529206,                              // l = 1
     0.314653948,  -0.419538597, 0.072161590,  -0.335630878, -0.070797138,  // l = 2
@@ -40,34 +41,34 @@ TEST(ShBasis, IndexHelpers) {
     for (int m = -l; m <= l; ++m) EXPECT_EQ(ShIndex(l, m), expected++);
 }
 
-TEST(ShBasis, SpecTestVectorDouble) {
+TEST(ShBasis, TestVectorDouble) {
   const Vec3d d{0.48, 0.6, 0.64};
-  // The SPEC values are rounded to 9 decimals: |error| <= 5e-10 < 1e-9.
+  // The test vector's values are rounded to 9 decimals: |error| <= 5e-10 < 1e-9.
   constexpr double kTol = 1e-9;
   for (int order = 0; order <= 4; ++order) {
     std::vector<double> y(ShCoeffCount(order)), r(ShCoeffCount(order));
     EvalShBasis(order, d, y.data());
     EvalShBasisRecurrence(order, d, r.data());
     for (int i = 0; i < ShCoeffCount(order); ++i) {
-      EXPECT_NEAR(y[i], kSpecVector[i], kTol) << "order " << order << " index " << i;
-      EXPECT_NEAR(r[i], kSpecVector[i], kTol) << "recurrence, order " << order << " index " << i;
+      EXPECT_NEAR(y[i], kTestVector[i], kTol) << "order " << order << " index " << i;
+      EXPECT_NEAR(r[i], kTestVector[i], kTol) << "recurrence, order " << order << " index " << i;
     }
   }
 }
 
-TEST(ShBasis, SpecTestVectorFloat) {
+TEST(ShBasis, TestVectorFloat) {
   const Vec3f d{0.48f, 0.6f, 0.64f};
   // Float: the input is rounded (relative 2^-24 per component) and each value takes at most ~12
   // roundings (closed forms; the recurrence to l = 4 a few more) on magnitudes <= 3 before the
-  // final constant; 64 float ulps of 1 (7.6e-6) bounds that, plus the SPEC's own 5e-10.
+  // final constant; 64 float ulps of 1 (7.6e-6) bounds that, plus the test vector's own 5e-10.
   constexpr double kTol = 64 * kFloatEps + 5e-10;
   for (int order = 0; order <= 4; ++order) {
     std::vector<float> y(ShCoeffCount(order)), r(ShCoeffCount(order));
     EvalShBasis(order, d, y.data());
     EvalShBasisRecurrence(order, d, r.data());
     for (int i = 0; i < ShCoeffCount(order); ++i) {
-      EXPECT_NEAR(y[i], kSpecVector[i], kTol) << "order " << order << " index " << i;
-      EXPECT_NEAR(r[i], kSpecVector[i], kTol) << "recurrence, order " << order << " index " << i;
+      EXPECT_NEAR(y[i], kTestVector[i], kTol) << "order " << order << " index " << i;
+      EXPECT_NEAR(r[i], kTestVector[i], kTol) << "recurrence, order " << order << " index " << i;
     }
   }
 }

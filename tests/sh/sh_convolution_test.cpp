@@ -20,8 +20,9 @@ namespace {
 using test::kDoubleEps;
 using test::kPi;
 
-TEST(IrradianceBandFactor, MatchesSpecList) {
-  // SPEC 2: π, 2π/3, π/4, 0, -π/24, 0, π/64, 0, -π/128. Each factor takes <= 3 roundings.
+TEST(IrradianceBandFactor, MatchesTheDocumentedList) {
+  // docs/spherical-harmonics.md: π, 2π/3, π/4, 0, -π/24, 0, π/64, 0, -π/128. Each factor takes <= 3
+  // roundings.
   const double expected[] = {kPi, 2 * kPi / 3, kPi / 4, 0, -kPi / 24, 0, kPi / 64, 0, -kPi / 128};
   for (int l = 0; l <= 8; ++l) {
     EXPECT_NEAR(IrradianceBandFactor(l), expected[l], 4 * kDoubleEps * std::abs(expected[l]))
@@ -71,7 +72,7 @@ TEST(IrradianceBandFactor, MatchesNumericConvolutionOfClampedCosine) {
 }
 
 TEST(CosinePowerBandFactor, MatchesUe4ClosedFormsForLowBands) {
-  // Seed 001, UE4 CalcDiffuseTransferSH3: L0 = 2π/(1+n), L1 = 2π/(2+n), L2 = n 2π/(3+4n+n²),
+  // UE4's CalcDiffuseTransferSH3: L0 = 2π/(1+n), L1 = 2π/(2+n), L2 = n 2π/(3+4n+n²),
   // L3 = (n-1) 2π/(8+6n+n²). Different rounding order only: 8 ulps relative.
   for (const double n : {0.0, 0.25, 0.5, 1.0, 2.0, 3.7, 10.0, 64.0, 1000.0}) {
     const double ue4[] = {2 * kPi / (1 + n), 2 * kPi / (2 + n), n * 2 * kPi / (3 + 4 * n + n * n),
@@ -190,14 +191,15 @@ TEST(Irradiance, RgbMatchesPerChannel) {
 
 TEST(Lobes, CosinePowerLobeIntegratesToItsAnalyticValue) {
   // ∫ max(0, ω·d)^n dω = 2π/(n+1) = c_00 · sqrt(4π). A handful of roundings on values <= 2π:
-  // 1e-14 absolute; the seed constants below are given to 20 digits, so 1e-15 covers our
+  // 1e-14 absolute; the HLSL constants below are given to 20 digits, so 1e-15 covers our
   // ~2-ulp products.
   for (const double n : {0.0, 1.0, 2.5, 30.0}) {
     std::vector<double> c(ShCoeffCount(3));
     CosinePowerLobe(3, n, Normalize(Vec3d{1, 2, 3}), c);
     EXPECT_NEAR(c[0] * std::sqrt(4 * kPi), 2 * kPi / (n + 1), 1e-14) << "n " << n;
   }
-  // The n = 1 lobe is seed 000's shEvaluateCosineLobe: 0.886227, ±1.023327 (y, z, x).
+  // The n = 1 lobe is shEvaluateCosineLobe of SebH's HLSL spherical-harmonics helpers: 0.886227,
+  // ±1.023327 (y, z, x).
   std::vector<double> c(4);
   const Vec3d d = Normalize(Vec3d{0.3, -0.4, 0.5});
   CosinePowerLobe(1, 1.0, d, c);
@@ -270,8 +272,8 @@ std::vector<double> NumericHgProjection(int order, double g, const Vec3d& d) {
 
 TEST(Lobes, HenyeyGreensteinMatchesNumericProjection) {
   // The truncated lobe must equal the first coefficients of the full projection exactly, at
-  // order 8 (SPEC 2's "at least") and at kMaxShOrder. The quadrature has converged to rounding
-  // at every g (HgPolarRule), so what remains is rounding: ~(nodes per integral) · eps ·
+  // order 8 (the highest a job may ask for) and at kMaxShOrder. The quadrature has converged to
+  // rounding at every g (HgPolarRule), so what remains is rounding: ~(nodes per integral) · eps ·
   // ∫|p Y| ≈ 1300 · 2.2e-16 · O(1) ≈ 3e-13 worst case. Measured (recorded as
   // hg_max_error_L*_g*): <= 4.1e-14 at g = ±0.999 (the 1/v² weights span six decades, so
   // cancellation costs digits), <= 1.7e-14 at g = ±0.5, 0.9, 6e-16 at g = 0. Tolerance 1e-12

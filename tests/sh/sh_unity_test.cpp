@@ -87,24 +87,24 @@ TEST(UnitySh9, SkyLightIsUpInBothFrames) {
   EXPECT_NEAR(EvalUnityShadeSh9(unity, {0, 1, 0}).y, expected, 1e-6);
 }
 
-// Seed 004's ConvertSHConstants, transcribed from the seed's text (not through the library):
+// Unity's ConvertSHConstants, transcribed from its published text (not through the library):
 //   fC0 = 1/(2 sqrtπ), fC1 = sqrt(3)/(3 sqrtπ), fC2 = sqrt(15)/(8 sqrtπ), fC3 = sqrt(5)/(16 sqrtπ),
 //   fC4 = 0.5 fC2;  for iC in 0..2:
 //   SHArBrC[iC]     = (-fC1 sh[3][iC], -fC1 sh[1][iC], fC1 sh[2][iC], fC0 sh[0][iC] - fC3
 //   sh[6][iC]) SHArBrC[iC + 3] = (fC2 sh[4][iC], -fC2 sh[5][iC], 3 fC3 sh[6][iC], -fC2 sh[7][iC])
 //   SHArBrC[6]      = (fC4 sh[8][0], fC4 sh[8][1], fC4 sh[8][2], 1)
-// Evaluated in double (the seed uses float constants; the contract is the formula). Also returns,
+// Evaluated in double (Unity uses float constants; the contract is the formula). Also returns,
 // per entry, the sum of the absolute values of its terms (the scale of its rounding error).
-struct SeedPacking {
+struct UnityPacking {
   double value[7][4], scale[7][4];
 };
 
-SeedPacking SeedConvertShConstants(const double (&sh)[9][3]) {
+UnityPacking UnityConvertShConstants(const double (&sh)[9][3]) {
   const double sqrtPi = std::sqrt(kPi);
   const double fC0 = 1.0 / (2.0 * sqrtPi), fC1 = std::sqrt(3.0) / (3.0 * sqrtPi);
   const double fC2 = std::sqrt(15.0) / (8.0 * sqrtPi), fC3 = std::sqrt(5.0) / (16.0 * sqrtPi);
   const double fC4 = 0.5 * fC2;
-  SeedPacking p;
+  UnityPacking p;
   for (int iC = 0; iC < 3; ++iC) {
     const double a[4] = {-fC1 * sh[3][iC], -fC1 * sh[1][iC], fC1 * sh[2][iC],
                          fC0 * sh[0][iC] - fC3 * sh[6][iC]};
@@ -138,7 +138,7 @@ constexpr double kArbitrarySh[9][3] = {
 // more subtraction; the kUnityYUp case adds the SH rotation, accurate to ~10 eps of the inputs,
 // which the caller folds into scale). Rounding to float adds <= 2^-24 |x|. A wrong sign, index
 // or constant moves an entry by O(|entry|) >> 2^-24 |entry|.
-void ExpectPackingEquals(const UnitySh9Constants& got, const SeedPacking& expected,
+void ExpectPackingEquals(const UnitySh9Constants& got, const UnityPacking& expected,
                          double extraScale) {
   static const char* const kNames[7] = {"SHAr", "SHAg", "SHAb", "SHBr", "SHBg", "SHBb", "SHC"};
   for (int v = 0; v < 7; ++v) {
@@ -151,10 +151,10 @@ void ExpectPackingEquals(const UnitySh9Constants& got, const SeedPacking& expect
   }
 }
 
-TEST(UnitySh9, PackingMatchesSeedConvertShConstantsLiterally) {
-  // The seed's constants are probebake's basis constants (SPEC 2, 9 digits) times Â_l/π
-  // (Â = π, 2π/3, π/4): fC0 = Y00, fC1 = 0.488602512 · 2/3, fC2 = 1.092548431/4,
-  // 3 fC3 = 0.946174696/4, fC4 = 0.546274215/4. SPEC's constants are rounded to 9 decimals
+TEST(UnitySh9, PackingMatchesConvertShConstantsLiterally) {
+  // Unity's constants are probebake's basis constants (docs/spherical-harmonics.md, 9 digits) times
+  // Â_l/π (Â = π, 2π/3, π/4): fC0 = Y00, fC1 = 0.488602512 · 2/3, fC2 = 1.092548431/4,
+  // 3 fC3 = 0.946174696/4, fC4 = 0.546274215/4. The documented constants are rounded to 9 decimals
   // (<= 5e-10), so they agree to 1e-9 absolute.
   const double sqrtPi = std::sqrt(kPi);
   EXPECT_NEAR(1.0 / (2.0 * sqrtPi), 0.282094792, 1e-9);
@@ -167,12 +167,12 @@ TEST(UnitySh9, PackingMatchesSeedConvertShConstantsLiterally) {
   for (int i = 0; i < 9; ++i)
     radiance[i] = {kArbitrarySh[i][0], kArbitrarySh[i][1], kArbitrarySh[i][2]};
   const UnitySh9Constants ours = PackUnitySh9(radiance, UnityAxes::kProbebake);
-  ExpectPackingEquals(ours, SeedConvertShConstants(kArbitrarySh), 0);
+  ExpectPackingEquals(ours, UnityConvertShConstants(kArbitrarySh), 0);
   EXPECT_EQ(ours.v[6][3], 1.0f);
 
-  // kUnityYUp: the seed's formula applied to the coefficients of L'(n_u) = L(M n_u), M: (x, y, z)
-  // -> (x, z, y). c'_i = ∫ L(ω) Y_i(M ω) dω, and by the closed forms of SPEC 2 at M ω = (x, z, y)
-  // (k1 = 0.488602512, k2 = 1.092548431, k6 = 0.946174696, k8 = 0.546274215):
+  // kUnityYUp: Unity's formula applied to the coefficients of L'(n_u) = L(M n_u), M: (x, y, z)
+  // -> (x, z, y). c'_i = ∫ L(ω) Y_i(M ω) dω, and by the closed forms of docs/spherical-harmonics.md
+  // at M ω = (x, z, y) (k1 = 0.488602512, k2 = 1.092548431, k6 = 0.946174696, k8 = 0.546274215):
   //   Y1(Mω) = -k1 z = -Y2, Y2(Mω) = k1 y = -Y1, Y3(Mω) = Y3, Y4(Mω) = k2 xz = -Y7,
   //   Y5(Mω) = -k2 zy = Y5, Y7(Mω) = -k2 xy = -Y4,
   //   Y6(Mω) = k6 (y² - 1/3) = -Y6/2 - (√3/2) Y8, Y8(Mω) = k8 (x² - z²) = -(√3/2) Y6 + Y8/2
@@ -198,7 +198,7 @@ TEST(UnitySh9, PackingMatchesSeedConvertShConstantsLiterally) {
   }
   // The library rotates by an exact-up-to-rounding SH rotation: each rotated coefficient is off
   // by <= ~10 eps · max|c| (a 5-term dot product of O(1) matrix entries): fold max|c| into scale.
-  ExpectPackingEquals(PackUnitySh9(radiance, UnityAxes::kUnityYUp), SeedConvertShConstants(yUp),
+  ExpectPackingEquals(PackUnitySh9(radiance, UnityAxes::kUnityYUp), UnityConvertShConstants(yUp),
                       maxAbs);
 }
 

@@ -18,8 +18,8 @@ namespace {
 using testing::TempDir;
 
 constexpr double kPi = std::numbers::pi;
-// Y_00 and Y_10 = c z (SPEC 2): a radiance a + b z has L_00 = 2 sqrt(pi) a, L_10 = sqrt(4 pi / 3)
-// b.
+// Y_00 and Y_10 = c z (docs/spherical-harmonics.md): a radiance a + b z has L_00 = 2 sqrt(pi) a,
+// L_10 = sqrt(4 pi / 3) b.
 const double kL00PerUnit = 2 * std::sqrt(kPi);
 const double kL10PerUnit = std::sqrt(4 * kPi / 3);
 

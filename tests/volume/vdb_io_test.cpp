@@ -1,5 +1,5 @@
-// Write -> read round trips of the probe volume file (SPEC 5), bit for bit, and the writer's and
-// reader's error paths that need no hand-made OpenVDB file.
+// Write -> read round trips of the probe volume file (docs/volume-format.md), bit for bit, and the
+// writer's and reader's error paths that need no hand-made OpenVDB file.
 #include "probebake/volume/vdb_io.h"
 
 #include <gtest/gtest.h>

@@ -1,7 +1,7 @@
-// The file as OpenVDB itself sees it (SPEC 5): grid names and types, one shared transform with
-// indexToWorld(i, j, k) = min + spacing * (i, j, k), active voxels = baked probes, metadata types;
-// the streamed file equals what openvdb::io::File::write makes of the same grids; and
-// ReadProbeVolume's validation of hand-broken files. The only test file that includes OpenVDB.
+// The file as OpenVDB itself sees it (docs/volume-format.md): grid names and types, one shared
+// transform with indexToWorld(i, j, k) = min + spacing * (i, j, k), active voxels = baked probes,
+// metadata types; the streamed file equals what openvdb::io::File::write makes of the same grids;
+// and ReadProbeVolume's validation of hand-broken files. The only test file that includes OpenVDB.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -345,7 +345,7 @@ TEST_F(VdbLayout, ReaderRejectsBrokenFilesNamingTheGridOrKey) {
     m = meta->copyMeta();
     m->removeMeta("stats");
     expectError(WriteAndRead(good, *m), "stats", "missing");
-    // stats that are not the SPEC 5 object.
+    // stats that are not the documented object.
     const std::pair<const char*, const char*> badStats[] = {
         {"[1,2]", "stats: not a JSON object"},
         {"{\"wallSeconds\":1", "stats: not a JSON object"},

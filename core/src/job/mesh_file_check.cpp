@@ -277,7 +277,8 @@ std::string GlbProblem(std::string_view bytes) {
 namespace {
 
 // A buffer outside the file: a uri that is not a data: URI. Assimp would open it through the file
-// system, which a bake never lets it do (a server must not open a path a request names, SPEC 8).
+// system, which a bake never lets it do (a server must not open a path a request names:
+// docs/service.md).
 std::string ExternalBufferProblem(const google::protobuf::Value& root) {
   const auto& fields = root.struct_value().fields();
   const auto buffers = fields.find("buffers");

@@ -33,7 +33,7 @@ std::string GlbProblem(std::string_view bytes);
 //     nesting deeper than 1000 (JSON nesting deeper than 100 is refused before parsing);
 //   - a buffer outside itself, a uri that is not a data: URI: assimp would open it through the
 //     file system, which a bake never lets it do (a server must not open a path a request names,
-//     SPEC 8); the reason says so and how to embed it;
+//     docs/service.md); the reason says so and how to embed it;
 //   - geometry assimp reads wrong without a word: the extensions KHR_mesh_quantization,
 //     EXT_meshopt_compression and KHR_meshopt_compression (int16 positions read as floats), a
 //     triangle list whose index or vertex count is not a multiple of 3 (the rest dropped), a node

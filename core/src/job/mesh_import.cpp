@@ -47,7 +47,8 @@ Vec3d Apply(const Affine& m, const aiVector3D& p) {
 
 // The file system assimp sees: nothing. Assimp opens the files a model names (a glTF buffer's
 // uri, an OBJ's mtllib) through its IO system, and a server must never open a path a request
-// names (SPEC 8); ReadFileFromMemory serves the model's own bytes and asks this for the rest.
+// names (docs/service.md); ReadFileFromMemory serves the model's own bytes and asks this for the
+// rest.
 class NoFilesIOSystem : public Assimp::IOSystem {
  public:
   bool Exists(const char*) const override { return false; }

@@ -11,18 +11,11 @@
 namespace probebake {
 
 QualityPreset PresetFor(v1::BakeSettings::Quality quality) {
-  // Calibrated with the accuracy benchmark (scripts/bench.sh, tests/bench/results/results.md) on
-  // its hardest scene, the demo room (NEE+MIS, Sobol; mean relative irradiance error against a
-  // depth-64 reference; CPU time per probe on one core of the 2-core bench machine; run of
-  // 2026-12-02 06:56, baker version 7):
-  //  - PREVIEW: 12% error, 0.73 ms/probe. Depth 6 loses 2% of the light there, far under the
-  //    noise; the 5% target lets easy probes stop at 80 samples.
-  //  - PRODUCTION: 3.7% error, 5.3 ms/probe (2.2% on the courtyard scene, 1.0% on the closed-form
-  //    one, where probes meet the 2% target at ~660 samples). Depth 8 loses 0.7%.
-  //  - REFERENCE: 1.8% error (0.5% of it the reference's own), 24 ms/probe; depth 32 leaves no
-  //    measurable depth bias.
-  // Adaptive probes sample at least 10 of their 64 batches (a first round of 8 and a confirming
-  // one of 2) before they may stop.
+  // Calibrated with the accuracy benchmark on its hardest scene, the demo room; what each preset
+  // costs and buys there is measured in docs/accuracy-and-speed.md. The depths: PREVIEW's 6 loses
+  // less light than its noise, PRODUCTION's 8 about a tenth of its noise, REFERENCE's 32 nothing
+  // measurable. The targets let easy probes stop early: adaptive probes sample at least 10 of their
+  // 64 batches (a first round of 8 and a confirming one of 2) before they may stop.
   switch (quality) {
     case v1::BakeSettings::PREVIEW:
       return {512, 6, 0.05};

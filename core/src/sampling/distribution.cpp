@@ -76,9 +76,8 @@ DiscreteSample DiscreteDistribution::Sample(double u) const {
   // branches over short ranges, where a binary search's few branches mispredict half the time,
   // searched over long ones. The count runs over a fixed window from lo + 1 (4 or 8 entries): its
   // entries past hi lie beyond i + 1, above u (the padding too), and add nothing, so i is that of
-  // a count to hi, without the loop exit that mispredicted with the range's length. A 128 x 64
-  // sky's 2D sample took 26.6 ns before, 16.4 ns after (probebake_sampling_bench; 2048 x 1024:
-  // 87 -> 82 ns; 10^6 log-uniform weights over 15 decades, mostly empty ranges: 21 -> 24 ns).
+  // a count to hi, without the loop exit that mispredicted with the range's length
+  // (probebake_sampling_bench; the timings are in docs/performance-history.md).
   const int64_t lo = guide_[b], hi = guide_[b + 1];
   int64_t i;
   if (hi - lo <= kLinearSearchMax) {

@@ -1,5 +1,6 @@
-// Names and encodings of the probe volume format shared by the writer and the reader (SPEC 5;
-// documented in probebake/volume/vdb_io.h). No OpenVDB types here. Private to the volume module.
+// Names and encodings of the probe volume format shared by the writer and the reader
+// (docs/volume-format.md; documented in probebake/volume/vdb_io.h). No OpenVDB types here. Private
+// to the volume module.
 #pragma once
 
 #include <string>
@@ -44,10 +45,10 @@ const char* PlacementName(Placement placement);
 // Inverse of PlacementName; false for an unknown name.
 bool ParsePlacement(const std::string& name, Placement* placement);
 
-// The stats JSON object of SPEC 5 (compact, keys sorted, through protobuf's JSON mapping; see
-// proto_json.h) and back; wallSeconds and the counts round-trip exactly. INVALID_ARGUMENT
-// "volume.stats.<field>: <reason>" when wallSeconds is not finite or a count's magnitude is not
-// below 2^53 (JSON numbers are doubles).
+// The stats JSON object of the volume format (compact, keys sorted, through protobuf's JSON
+// mapping; see proto_json.h) and back; wallSeconds and the counts round-trip exactly.
+// INVALID_ARGUMENT "volume.stats.<field>: <reason>" when wallSeconds is not finite or a count's
+// magnitude is not below 2^53 (JSON numbers are doubles).
 absl::StatusOr<std::string> StatsToJson(const BakeStats& stats);
 // INVALID_ARGUMENT "stats: <reason>" when `json` is not such an object (every key present,
 // counts integral numbers below 2^53 in magnitude, threads in int range).

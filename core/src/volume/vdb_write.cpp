@@ -1,6 +1,7 @@
-// WriteProbeVolume: builds the grids of SPEC 5 one at a time and streams each into the file as
-// soon as it is built, through OpenVDB's own archive writer (openvdb::io::Archive), so the file
-// is exactly what openvdb::io::File::write would produce but never holds every grid in memory.
+// WriteProbeVolume: builds the grids of docs/volume-format.md one at a time and streams each into
+// the file as soon as it is built, through OpenVDB's own archive writer (openvdb::io::Archive), so
+// the file is exactly what openvdb::io::File::write would produce but never holds every grid in
+// memory.
 #include <cerrno>
 #include <fstream>
 #include <memory>

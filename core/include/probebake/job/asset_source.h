@@ -2,7 +2,7 @@
 // (a path relative to the job file: local bakes) or by `blob` (a content digest: what the CLI
 // uploads and the server bakes). BuildBakeJob asks an AssetSource for the bytes; the server
 // implements one over its blob store (and refuses every `file`: the server never opens a path
-// that a request names, SPEC 8); LocalAssetSource serves local bakes.
+// that a request names: docs/service.md); LocalAssetSource serves local bakes.
 //
 // Errors name the job field: every message starts with the `fieldPath` the caller passes
 // ("scene.meshes[0].file: cannot read 'room.obj' (/jobs/room.obj): No such file or directory").

@@ -1,5 +1,5 @@
-// Content digests (SPEC 8): lowercase hex SHA-256, as in the Remote Execution API. Blobs, scene and
-// job digests all use this one function.
+// Content digests (docs/service.md): lowercase hex SHA-256, as in the Remote Execution API. Blobs,
+// scene and job digests all use this one function.
 #pragma once
 
 #include <string>

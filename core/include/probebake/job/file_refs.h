@@ -1,7 +1,7 @@
 // The CLI's view of a job's asset files: list every `file` reference so it can upload the files
-// as blobs, then rewrite each reference into `blob` (SPEC 4a, 8: the server never reads client
-// paths). After the rewrite, the job digest and scene digest are unchanged: both are computed with
-// every file reference replaced by the digest of its content.
+// as blobs, then rewrite each reference into `blob` (docs/job-format.md: the server never reads
+// client paths). After the rewrite, the job digest and scene digest are unchanged: both are
+// computed with every file reference replaced by the digest of its content.
 #pragma once
 
 #include <optional>

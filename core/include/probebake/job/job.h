@@ -90,15 +90,16 @@ v1::BakeSettings SettingsToProto(const BakeSettings& settings);
 // rules) into the same settings.
 std::string SettingsToJson(const BakeSettings& settings);
 
-// Probe grid from a validated v1::Grid (SPEC 4a): with counts, spacing (max - min) / (n - 1) and
-// an axis with one probe takes the smallest spacing of the other axes (1 when every axis has one
-// probe); with spacing, counts floor((max - min) / spacing + 1e-9) + 1. `grid` must have passed
-// ValidateJobSpec.
+// Probe grid from a validated v1::Grid (docs/job-format.md): with counts, spacing
+// (max - min) / (n - 1), and an axis with one probe takes the smallest spacing of the other axes
+// (1 when every axis has one probe); with spacing, counts floor((max - min) / spacing + tol) + 1,
+// tol covering the rounding of the coordinates (at least 1e-9; grid_internal.h). `grid` must have
+// passed ValidateJobSpec.
 ProbeGrid ResolveGrid(const v1::Grid& grid);
 
-// The environment map orientation of SPEC 4a: map direction -> world direction for `up` and a
-// rotation of `rotationDeg` about the world up axis, counter-clockwise seen from above. Exact for
-// multiples of 90 degrees.
+// The environment map orientation of docs/job-format.md: map direction -> world direction for `up`
+// and a rotation of `rotationDeg` about the world up axis, counter-clockwise seen from above. Exact
+// for multiples of 90 degrees.
 Mat3d EnvironmentWorldFromMap(v1::EnvironmentMap::Up up, double rotationDeg);
 
 }  // namespace probebake

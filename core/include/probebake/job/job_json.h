@@ -1,4 +1,4 @@
-// Reading job files (SPEC 4a): the proto3 JSON form of probebake.v1.JobSpec.
+// Reading job files (docs/job-format.md): the proto3 JSON form of probebake.v1.JobSpec.
 //
 // The text is first parsed as plain JSON and walked alongside the JobSpec descriptor, so every
 // unknown field, wrong type, bad enum name and non-finite number is reported with its JSON path

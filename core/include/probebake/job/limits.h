@@ -1,6 +1,6 @@
-// Limits a job must respect (SPEC 6): configuration, reported by the server in GetCapabilities
-// (the fields mirror probebake.v1.JobLimits one to one). A job past any limit is rejected up front
-// with INVALID_ARGUMENT naming the field, never discovered mid-bake.
+// Limits a job must respect (docs/job-format.md): configuration, reported by the server in
+// GetCapabilities (the fields mirror probebake.v1.JobLimits one to one). A job past any limit is
+// rejected up front with INVALID_ARGUMENT naming the field, never discovered mid-bake.
 //
 // 0 means "no limit" for every field, as in the proto; the baker's own bounds still apply (SH
 // orders 0 to kMaxJobShOrder, grid counts that fit an int32).
@@ -10,7 +10,7 @@
 
 namespace probebake {
 
-// The highest SH order a job may ask for (SPEC 2: 0 to 8). The SH code itself goes to
+// The highest SH order a job may ask for (docs/job-format.md: 0 to 8). The SH code itself goes to
 // kMaxShOrder (sh_basis.h, 9); the name differs so that no translation unit can see two values.
 inline constexpr int kMaxJobShOrder = 8;
 

@@ -1,6 +1,6 @@
-// Structural validation of a job (SPEC 6): every check that needs no asset bytes, so bad input is
-// rejected before anything is uploaded or baked. BuildBakeJob runs it first; the server runs it in
-// CreateBakeJob; the CLI runs it before uploading.
+// Structural validation of a job (docs/job-format.md): every check that needs no asset bytes, so
+// bad input is rejected before anything is uploaded or baked. BuildBakeJob runs it first; the
+// server runs it in CreateBakeJob; the CLI runs it before uploading.
 //
 // Checked: NaN or infinity in any number; vector lengths (3 for points, directions and RGB, 16
 // for transforms); negative radiance, intensity, irradiance, emission and medium coefficients;

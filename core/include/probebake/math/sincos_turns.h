@@ -1,13 +1,12 @@
 // sin and cos of an angle given in turns (2 pi radians), for the sampling warps' azimuths.
 //
 // Why not std::sin / std::cos: the warps call them once or twice per path vertex, and glibc's
-// general-argument sincos costs ~130 instructions a call (callgrind, probe bake of the demo room:
-// 9% of the tracer's instructions outside Embree). Here the argument is reduced exactly in turns
-// (no multiple of pi to subtract: t - q/4 is exact for |t| < 2^50 by Sterbenz's lemma), leaving
-// x = 2 pi r with |x| <= pi/4, where truncated Taylor series in x^2 (evaluated by Estrin's scheme)
-// are accurate to rounding: the first omitted terms, x^19/19! and x^20/20!, are below 1e-19 at
-// pi/4. Deterministic: plain double arithmetic (the project builds with -ffp-contract=off), the
-// same bits on every x86-64 build.
+// general-argument sincos costs ~130 instructions a call (docs/performance-history.md). Here the
+// argument is reduced exactly in turns (no multiple of pi to subtract: t - q/4 is exact for
+// |t| < 2^50 by Sterbenz's lemma), leaving x = 2 pi r with |x| <= pi/4, where truncated Taylor
+// series in x^2 (evaluated by Estrin's scheme) are accurate to rounding: the first omitted terms,
+// x^19/19! and x^20/20!, are below 1e-19 at pi/4. Deterministic: plain double arithmetic (the
+// project builds with -ffp-contract=off), the same bits on every x86-64 build.
 //
 // Accuracy: |error| <= 4 * 2^-53 absolute against the exact sin(2 pi t), cos(2 pi t) (tested
 // against long double over a million sampler values and |t| up to 1e6; the measured maximum is
@@ -34,8 +33,7 @@ inline SinCos SinCosTurns(double turns) {
   // C = 1/4! - z/6! + ... - z^7/18!. x z S is at most 0.11 |x|, so its rounding errors reach the
   // result scaled down by that much. S and C by Estrin's scheme, pairs of terms combined by z^2
   // and z^4, rather than Horner's rule: a dependency chain of 3 multiply-adds instead of 8, and
-  // the warps wait for the result (perf, demo-room bake: these lines held 10.4% of the CPU
-  // samples with Horner's rule, 6.5% with Estrin's; 1.4% of sampler values round differently).
+  // the warps wait for the result (docs/performance-history.md).
   const double z2 = z * z, z4 = z2 * z2;
   const double s01 = 1.0 / 6.0 - z * (1.0 / 120.0);
   const double s23 = 1.0 / 5040.0 - z * (1.0 / 362880.0);

@@ -1,7 +1,7 @@
 // The scene a bake sees: validated, in world space, in double precision, with every asset loaded.
 // Built from a JobSpec by BuildBakeJob (probebake/job/job.h); the tracer never sees protobuf.
 //
-// Conventions (SPEC 3, 4, 4a): lengths in scene units; RGB is linear Rec.709; radiance per
+// Conventions (docs/job-format.md): lengths in scene units; RGB is linear Rec.709; radiance per
 // steradian per unit area; directions are unit vectors. A triangle's front face is
 // counter-clockwise, geometric normal (b - a) x (c - a). Geometry occludes from both sides.
 #pragma once

@@ -1,13 +1,14 @@
-// Real spherical-harmonic basis (SPEC 2): orthonormal on the unit sphere, Condon–Shortley phase,
-// polar axis +Z, evaluated on world-space unit directions (x, y, z) with no axis swap.
+// Real spherical-harmonic basis (docs/spherical-harmonics.md): orthonormal on the unit sphere,
+// Condon–Shortley phase, polar axis +Z, evaluated on world-space unit directions (x, y, z) with no
+// axis swap.
 //
 //   Y_l0        = sqrt((2l+1)/(4π)) P_l(z)
 //   Y_lm (m>0)  = sqrt(2) K_lm P_l^m(z) cos(mφ)         P_l^m with the (-1)^m Condon–Shortley
 //   phase, Y_l-m (m>0) = sqrt(2) K_lm P_l^m(z) sin(mφ)         K_lm = sqrt((2l+1)/(4π)
 //   (l-m)!/(l+m)!),
 //
-// so Y_1-1 = -0.4886 y, Y_10 = 0.4886 z, Y_11 = -0.4886 x (the seed HLSL's and Unity's signs).
-// Coefficient i = ShIndex(l, m) = l(l+1) + m; order L has ShCoeffCount(L) = (L+1)^2 of them.
+// so Y_1-1 = -0.4886 y, Y_10 = 0.4886 z, Y_11 = -0.4886 x (the signs of Unity's and most shader SH
+// code). Coefficient i = ShIndex(l, m) = l(l+1) + m; order L has ShCoeffCount(L) = (L+1)^2 of them.
 //
 // Two evaluation paths, agreeing to 1e-12 in double (tested):
 //  - orders 0..3: hand-expanded polynomials in (x, y, z) (the fast path);
@@ -31,7 +32,7 @@
 namespace probebake {
 
 // Highest supported order. 9 is the largest order whose coefficient indices (0..99) fit the
-// two-digit grid names radiance_sh_NN of the probe-volume file (SPEC 5).
+// two-digit grid names radiance_sh_NN of the probe-volume file (docs/volume-format.md).
 inline constexpr int kMaxShOrder = 9;
 
 // Number of coefficients of an order-`order` expansion, (order+1)^2.

@@ -1,4 +1,5 @@
-// Convolution of SH functions with circularly symmetric (zonal) kernels (SPEC 2).
+// Convolution of SH functions with circularly symmetric (zonal) kernels
+// (docs/spherical-harmonics.md).
 //
 // A kernel h(ω·d) that depends only on the angle to its axis d has zonal coefficients h_l (its
 // projection onto Y_l0 when d = +Z). Convolving a function f with it multiplies each band:
@@ -21,7 +22,8 @@
 //  - R. Ramamoorthi, P. Hanrahan, "An Efficient Representation for Irradiance Environment Maps",
 //    SIGGRAPH 2001, and "On the relationship between radiance and irradiance", JOSA A 18(10), 2001.
 //  - P.-P. Sloan, "Stupid Spherical Harmonics (SH) Tricks", GDC 2008 (zonal harmonics, windows).
-//  - Seed 001 (band factors and UE4's cos^n factors), seed 000 (HG lobe, cosine lobe).
+//  - UE4's CalcDiffuseTransferSH3 (cos^n factors); SebH's HLSL spherical-harmonics helpers (HG
+//    lobe, cosine lobe).
 #pragma once
 
 #include <span>

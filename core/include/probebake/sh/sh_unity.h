@@ -1,7 +1,7 @@
 // Export of order-2 RGB radiance SH to Unity's ambient / light-probe shader constants
 // unity_SHAr, unity_SHAg, unity_SHAb, unity_SHBr, unity_SHBg, unity_SHBb, unity_SHC (7 float4).
 //
-// Packing (seed 004, Unity's ConvertSHConstants): with radiance coefficients L_i of one channel
+// Packing (Unity's ConvertSHConstants): with radiance coefficients L_i of one channel
 // in the basis of sh_basis.h and fC0 = 1/(2 sqrt(π)), fC1 = sqrt(3)/(3 sqrt(π)),
 // fC2 = sqrt(15)/(8 sqrt(π)), fC3 = sqrt(5)/(16 sqrt(π)), fC4 = fC2/2,
 //   SHA = (-fC1 L3, -fC1 L1, fC1 L2, fC0 L0 - fC3 L6)
@@ -11,10 +11,10 @@
 // Unity's ShadeSH9(n) = dot(SHA, (n, 1)) + dot(SHB, n.xyzz * n.yzzx) + SHC.rgb (x² - y²)
 // equals E(n) / π, the irradiance over π (the radiance leaving a white Lambertian surface).
 //
-// Axes. probebake is Z-up and right-handed (SPEC 2); Unity is Y-up and left-handed. With
-// UnityAxes::kUnityYUp the mapping is Unity (x, y, z) = probebake (x, z, y): up stays up, x
-// stays x, and probebake's +Y (forward in a Z-up right-handed world) becomes Unity's forward
-// +Z. It is a reflection (det -1), applied as an improper SH rotation (sh_rotation.h), so
+// Axes. probebake is Z-up and right-handed (docs/spherical-harmonics.md); Unity is Y-up and
+// left-handed. With UnityAxes::kUnityYUp the mapping is Unity (x, y, z) = probebake (x, z, y): up
+// stays up, x stays x, and probebake's +Y (forward in a Z-up right-handed world) becomes Unity's
+// forward +Z. It is a reflection (det -1), applied as an improper SH rotation (sh_rotation.h), so
 // ShadeSH9 of the result at n_unity = (n.x, n.z, n.y) equals E(n)/π of the input at n.
 // UnityAxes::kProbebake packs the coefficients as they are.
 #pragma once

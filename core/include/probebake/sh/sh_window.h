@@ -1,4 +1,4 @@
-// Windows against ringing (SPEC 2), applied per band as f_lm *= w_l:
+// Windows against ringing (docs/spherical-harmonics.md), applied per band as f_lm *= w_l:
 //   none      w_l = 1
 //   Hanning   w_l = (1 + cos(π l / W)) / 2 for l <= W, 0 beyond (width W > 0)
 //   Lanczos   w_l = sinc(l / (L + 1)), sinc(x) = sin(πx)/(πx), L the expansion's order

@@ -11,8 +11,9 @@
 // probes and invalid ones (validity < 0.5) and renormalising the remaining weights; with no valid
 // neighbour the pixel shows a grey checker (no data). Irradiance at the normal n is
 // E(n) = sum_i E_i Y_i(n), with E_i the irradiance SH when the volume has them, else radiance SH
-// times the band factor A_l (SPEC 2). E is linear in the coefficients, so it is evaluated at the
-// probes and the probe values are blended: the same as blending coefficients, up to float rounding.
+// times the band factor A_l (docs/spherical-harmonics.md). E is linear in the coefficients, so it
+// is evaluated at the probes and the probe values are blended: the same as blending coefficients,
+// up to float rounding.
 //
 // Tone mapping: negative values (SH ringing) clip to 0; an exposure maps the given percentile of
 // pixel luminance (Rec.709 weights, over data pixels) to 1; values above 1 clip; then the sRGB

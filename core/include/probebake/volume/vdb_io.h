@@ -1,5 +1,6 @@
-// The probe volume file (SPEC 5): one OpenVDB file per bake, readable by stock OpenVDB tools and
-// by pyopenvdb. This header exposes no OpenVDB type; OpenVDB lives in two source files.
+// The probe volume file (docs/volume-format.md): one OpenVDB file per bake, readable by stock
+// OpenVDB tools and by pyopenvdb. This header exposes no OpenVDB type; OpenVDB lives in two source
+// files.
 //
 // Layout written by WriteProbeVolume (format 1):
 // - Grids, in this order: radiance_sh_00 ... radiance_sh_NN (NN = (L+1)^2 - 1, two digits, so
@@ -80,8 +81,8 @@ std::string RadianceGridName(int coefficient);
 // "irradiance_sh_07" for coefficient 7; coefficient in [0, 99].
 std::string IrradianceGridName(int coefficient);
 
-// The metadata a volume of `job` records (SPEC 5): the same for a local, a server and a merged
-// bake.
+// The metadata a volume of `job` records (docs/volume-format.md): the same for a local, a server
+// and a merged bake.
 VolumeMetadata VolumeMetadataFor(const BakeJob& job);
 
 // Writes `volume` to `path` as described above. Errors: INVALID_ARGUMENT when the volume is

@@ -1,8 +1,8 @@
-// Merging the volumes of a sharded bake (SPEC 3): sub-grids of one grid, each baked on its own
-// (another machine, another job) with the same scene, settings and seed, into one volume. A
-// probe's values depend only on the scene, the settings, the seed and the probe's position
-// (core/src/bake/probe_site.h), so the merged volume holds exactly what one bake of the union
-// grid would have produced at every probe the parts cover.
+// Merging the volumes of a sharded bake (docs/volume-format.md): sub-grids of one grid, each baked
+// on its own (another machine, another job) with the same scene, settings and seed, into one
+// volume. A probe's values depend only on the scene, the settings, the seed and the probe's
+// position (core/src/bake/probe_site.h), so the merged volume holds exactly what one bake of the
+// union grid would have produced at every probe the parts cover.
 //
 // The parts must agree on everything but their grids' extents, or the merge fails with
 // INVALID_ARGUMENT "part <i> (<name>): <field>: <reason>": sh_order, has_irradiance, sh_window
