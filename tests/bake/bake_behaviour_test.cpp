@@ -145,11 +145,11 @@ TEST(Determinism, SameBitsForAnyThreadCountAndRun) {
 }
 
 TEST(Determinism, ShardedGridGivesTheSameBitsAsTheWholeGrid) {
-  // SPEC 3: the sharding of a grid across machines does not change a result. A 4x3x3 grid and
-  // three sub-grids tiling it, each written as a user would (its own min, typed in decimal), bake
-  // every probe to the same bits. Spacing 0.8 is not binary: the sub-grids' positions at x = 1.6
-  // and z = 1.9 differ from the whole grid's (-0.8 + 0.8 * 3, 0.3 + 0.8 * 2) in the last bits,
-  // which the probe sites must absorb (probe_site.h).
+  // The sharding of a grid across machines does not change a result (docs/job-format.md). A 4x3x3
+  // grid and three sub-grids tiling it, each written as a user would (its own min, typed in
+  // decimal), bake every probe to the same bits. Spacing 0.8 is not binary: the sub-grids'
+  // positions at x = 1.6 and z = 1.9 differ from the whole grid's (-0.8 + 0.8 * 3, 0.3 + 0.8 * 2)
+  // in the last bits, which the probe sites must absorb (probe_site.h).
   BakeJob whole = DemoLikeScene();
   whole.grid.counts[0] = 4;
   whole.grid.counts[2] = 3;

@@ -1,4 +1,4 @@
-// Bakes against closed forms (SPEC 3): each test builds a scene whose incoming radiance at the
+// Bakes against closed forms: each test builds a scene whose incoming radiance at the
 // probe is known exactly, and compares every baked SH coefficient with its exact projection within
 // kSigmas reported standard errors (see bake_test_util.h for the tolerance policy).
 #include <gtest/gtest.h>

@@ -1,5 +1,6 @@
-// Irradiance grids (SPEC 2, 3): the stored irradiance is the stored radiance convolved with the
-// clamped cosine (Â_l per band) and then windowed as requested; radiance is never windowed.
+// Irradiance grids (docs/spherical-harmonics.md): the stored irradiance is the stored radiance
+// convolved with the clamped cosine (Â_l per band) and then windowed as requested; radiance is
+// never windowed.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,6 +1,7 @@
-// The probe integrator's packet tracing (core/src/bake/probe_integrator.h): tracing the rays from
-// the probe as sorted packets changes which rays Embree traverses together, never a sample's
-// result, its random numbers or the order in which samples are summed.
+// The probe integrator's packet tracing (core/src/bake/probe_integrator.h): tracing a group of
+// samples together, its rays as sorted packets, changes which rays Embree traverses together,
+// never a sample's result, its random numbers or the order in which samples are summed. Samples
+// traced one at a time (packets off) are the reference.
 #include "core/src/bake/probe_integrator.h"
 
 #include <gtest/gtest.h>
@@ -60,13 +61,13 @@ BatchResult Trace(const ProbeIntegrator& integrator, const TracerScene& tracer, 
 // probes in the open, under the roof and beside the box, and paths that end at the probe's hit
 // (maxDepth 0), after the first vertex (maxDepth 1), by roulette from the first vertex on, or
 // only at depth 32 (no roulette: the waves' sampler restarts past the Sobol sampler's cached
-// seeds): packets (at the probe and at every vertex) and single rays agree. A
+// seeds): packets (at the probe and at every vertex) and samples traced alone agree. A
 // permutation mix-up between samples, a lost shadow ray or a skipped random dimension changes
 // at least one sample's contribution, at least ~1/count of the largest coefficient here
 // (thousands of times the tolerance). The tolerance allows the hits of Embree's packet kernel to
 // differ from its single-ray kernel's in the last float bit (2^-24 relative), which moves a
 // path's later vertices by as little (on this project's machines the two agree bit for bit).
-TEST(ProbeIntegrator, PacketsAtTheProbeChangeNoResult) {
+TEST(ProbeIntegrator, PacketsChangeNoResult) {
   const Scene scene = RoomWithOpening();
   auto tracer = TracerScene::Build(scene, LocalOrigin(scene));
   ASSERT_TRUE(tracer.ok()) << tracer.status();
@@ -89,8 +90,8 @@ TEST(ProbeIntegrator, PacketsAtTheProbeChangeNoResult) {
         settings.sampler = sampler;
         settings.maxDepth = depth.maxDepth;
         settings.rrMinDepth = depth.rrMinDepth;
-        const ProbeIntegrator packets(scene, **tracer, lights, settings, /*probePackets=*/true);
-        const ProbeIntegrator single(scene, **tracer, lights, settings, /*probePackets=*/false);
+        const ProbeIntegrator packets(scene, **tracer, lights, settings, /*packets=*/true);
+        const ProbeIntegrator single(scene, **tracer, lights, settings, /*packets=*/false);
         for (const Vec3d& p : probes) {
           for (int64_t count : counts) {
             SCOPED_TRACE(::testing::Message()

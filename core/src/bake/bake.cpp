@@ -10,9 +10,10 @@
 #include <cmath>
 #include <condition_variable>
 #include <limits>
+#include <memory>
 #include <mutex>
-#include <numeric>
 #include <thread>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
 #include "probe_finish.h"
@@ -31,9 +32,9 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Rays per probe for the inside-geometry test (SPEC 3): a probe is invalid when more than
-// backfaceFraction of them first hit a back face. 128 directions of one Sobol stream resolve the
-// fraction to 1/128, far finer than any sensible threshold.
+// Rays per probe for the inside-geometry test (docs/job-format.md, `grid`): a probe is invalid
+// when more than backfaceFraction of them first hit a back face. 128 directions of one Sobol
+// stream resolve the fraction to 1/128, far finer than any sensible threshold.
 constexpr int kValidityRays = 128;
 // Stream id of the validity rays, outside the range of batch ids.
 constexpr uint64_t kValidityStream = ~uint64_t{0};
@@ -201,46 +202,74 @@ absl::Status CheckSettings(const BakeJob& job) {
   return absl::OkStatus();
 }
 
-absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& options,
-                                        int threads) {
+// The stages of a bake, in the order BakeInArena runs them:
+//   1. TraceableScene::Build: the tracer, the lights (weighted by their visibility table) and
+//      the integrator, once per job;
+//   2. NewVolume: the volume the probes are written to, all zero;
+//   3. PlaceProbes: each probe's validity, and whether the placement bakes it;
+//   4. ListProbesToBake: the probes left to bake, the ones resumed from a checkpoint copied;
+//   5. BakeProbes: every probe on the list, in parallel, each by ProbeBaker::Bake (delta lights
+//      exactly, then rounds of batches, adaptive or not, then the finished coefficients);
+//   6. FinishVolume: the AUTO window's summary and the statistics.
+// A cancellation or a probe too bright for the volume's floats ends the bake after stage 5.
+
+// The scene as the bake traces it. Built once per job; read-only once built.
+struct TraceableScene {
+  // Builds the BVH, the lights and the integrator, and (options.lightVisibility) the table of how
+  // much of each light reaches each region (light_visibility.h), which the lights then weigh
+  // their choice by. Errors: the tracer's (INTERNAL).
+  static absl::StatusOr<TraceableScene> Build(const BakeJob& job, const BakeOptions& options);
+
+  Vec3d offset;  // the tracer's local origin (tracer_scene.h)
+  // Behind pointers: the lights and the integrator keep references to the tracer and the lights.
+  std::unique_ptr<TracerScene> tracer;
+  std::unique_ptr<LightSet> lights;
+  std::unique_ptr<ProbeIntegrator> integrator;
+  int64_t visibilityRays = 0;  // traced to build the visibility table
+};
+
+// Builds the visibility table of `unweighted` (traced with a temporary integrator over it) and
+// returns the lights that weigh their choice by it. *rays gets the rays it traced.
+std::unique_ptr<LightSet> WithLightVisibility(const BakeJob& job, const TracerScene& tracer,
+                                              LightSet unweighted, int64_t* rays) {
   const auto start = Clock::now();
-  auto log = Logger("bake");
-  const BakeSettings& settings = job.settings;
-  const ProbeGrid& grid = job.grid;
-  const int64_t probeCount = grid.ProbeCount();
-  const int coeffs = ShCoeffCount(settings.shOrder);
-
-  const Vec3d offset = LocalOrigin(job.scene);
-  const ProbeSites sites(job.scene, offset);
-  PB_ASSIGN_OR_RETURN(std::unique_ptr<TracerScene> tracer, TracerScene::Build(job.scene, offset));
-  LightSet unweighted(job.scene, *tracer);
-  const ProbeFinisher finisher(settings);
-  // Where geometry can hide lights, how much of each light reaches each region
-  // (light_visibility.h). The pure direction-sampling estimator never chooses a light.
-  int64_t visibilityRays = 0;
-  LightVisibility visibility;
-  if (options.lightVisibility && settings.estimator != Estimator::kDirectionSampling &&
-      !job.scene.meshes.empty()) {
-    const auto visibilityStart = Clock::now();
-    visibility = LightVisibility::Build(*tracer, unweighted,
-                                        ProbeIntegrator(job.scene, *tracer, unweighted, settings));
-    visibilityRays = visibility.rays();
-    if (visibility.dims(0) > 0) {
-      log->info("light visibility: {} x {} x {} cells, {} entries, {} rays, {:.3f} s",
-                visibility.dims(0), visibility.dims(1), visibility.dims(2),
-                unweighted.ImportanceSize(), visibilityRays, Seconds(visibilityStart));
-    }
+  LightVisibility visibility = LightVisibility::Build(
+      tracer, unweighted, ProbeIntegrator(job.scene, tracer, unweighted, job.settings));
+  *rays = visibility.rays();
+  if (visibility.dims(0) > 0) {
+    Logger("bake")->info("light visibility: {} x {} x {} cells, {} entries, {} rays, {:.3f} s",
+                         visibility.dims(0), visibility.dims(1), visibility.dims(2),
+                         unweighted.ImportanceSize(), *rays, Seconds(start));
   }
-  const LightSet lights(std::move(unweighted), std::move(visibility));
-  const ProbeIntegrator integrator(job.scene, *tracer, lights, settings);
-  log->info(
-      "scene ready in {:.3f} s: {} meshes, {} lights ({} chosen through light trees), {} probes, "
-      "order {}, {} samples/probe",
-      Seconds(start), job.scene.meshes.size(), lights.Count(), lights.TreeLightCount(), probeCount,
-      settings.shOrder, settings.samplesPerProbe);
+  return std::make_unique<LightSet>(std::move(unweighted), std::move(visibility));
+}
 
+absl::StatusOr<TraceableScene> TraceableScene::Build(const BakeJob& job,
+                                                     const BakeOptions& options) {
+  TraceableScene s;
+  s.offset = LocalOrigin(job.scene);
+  PB_ASSIGN_OR_RETURN(s.tracer, TracerScene::Build(job.scene, s.offset));
+  LightSet unweighted(job.scene, *s.tracer);
+  // Where geometry can hide lights. The pure direction-sampling estimator never chooses a light.
+  if (options.lightVisibility && job.settings.estimator != Estimator::kDirectionSampling &&
+      !job.scene.meshes.empty()) {
+    s.lights = WithLightVisibility(job, *s.tracer, std::move(unweighted), &s.visibilityRays);
+  } else {
+    s.lights = std::make_unique<LightSet>(std::move(unweighted));
+  }
+  s.integrator = std::make_unique<ProbeIntegrator>(job.scene, *s.tracer, *s.lights, job.settings);
+  return s;
+}
+
+// A volume over the job's grid with every plane the settings and options ask for, all zero, no
+// probe active.
+ProbeVolume NewVolume(const BakeJob& job, const BakeOptions& options,
+                      const ProbeFinisher& finisher) {
+  const BakeSettings& settings = job.settings;
+  const int64_t probeCount = job.grid.ProbeCount();
+  const int coeffs = ShCoeffCount(settings.shOrder);
   ProbeVolume volume;
-  volume.grid = grid;
+  volume.grid = job.grid;
   volume.shOrder = settings.shOrder;
   volume.window = finisher.WindowName();
   volume.active.assign(probeCount, 0);
@@ -254,218 +283,370 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
     volume.autoWindowT.assign(probeCount, 0.0f);
   if (options.coefficientErrors)
     volume.radianceStdError.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
+  return volume;
+}
 
-  // Where probe `probe` is traced from (local coordinates) and its stream key: from its world
-  // position alone, so sub-grids bake their probes as the whole grid does (probe_site.h).
-  auto siteOf = [&](int64_t probe) {
-    int i, j, k;
-    grid.Coords(probe, &i, &j, &k);
-    return sites.At(grid.Position(i, j, k));
-  };
+// Where probe `probe` of the grid is traced from and its stream key: from its world position
+// alone, so that sub-grids bake their probes as the whole grid does (probe_site.h).
+struct ProbeStart {
+  Vec3d p;       // local: the site, moved off a surface it lies on (TraceOrigin)
+  uint64_t key;  // ProbeSite::key
+  int moves;     // how often it was moved off a surface
+};
+ProbeStart StartOf(const ProbeGrid& grid, const ProbeSites& sites, const TracerScene& tracer,
+                   int64_t probe) {
+  int i, j, k;
+  grid.Coords(probe, &i, &j, &k);
+  const ProbeSite site = sites.At(grid.Position(i, j, k));
+  ProbeStart start;
+  start.p = TraceOrigin(tracer, site.local, &start.moves);
+  start.key = site.key;
+  return start;
+}
 
-  // Placement and validity: which probes are inside geometry, which are near a surface.
-  std::atomic<int64_t> prepassRays{0};
+// Sets every probe's validity (inside geometry or not: kValidityRays rays, docs/job-format.md,
+// `grid`) and whether the placement bakes it (volume->active). Returns the rays traced.
+int64_t PlaceProbes(const BakeJob& job, const TracerScene& tracer, const ProbeSites& sites,
+                    ProbeVolume* volume) {
+  const BakeSettings& settings = job.settings;
+  const ProbeGrid& grid = job.grid;
+  std::atomic<int64_t> placementRays{0};
   std::atomic<int64_t> onSurfaces{0};
   tbb::parallel_for(
-      tbb::blocked_range<int64_t>(0, probeCount, 64),
+      tbb::blocked_range<int64_t>(0, grid.ProbeCount(), 64),
       [&](const tbb::blocked_range<int64_t>& range) {
         int64_t rays = 0;
         for (int64_t probe = range.begin(); probe != range.end(); ++probe) {
-          const ProbeSite site = siteOf(probe);
-          int moves;
-          const Vec3d p = TraceOrigin(*tracer, site.local, &moves);
-          if (moves > 0) onSurfaces.fetch_add(1, std::memory_order_relaxed);
-          const Vec3f origin(p);
-          SobolSampler sampler(settings.seed, Hash(site.key, kValidityStream));
+          const ProbeStart start = StartOf(grid, sites, tracer, probe);
+          if (start.moves > 0) onSurfaces.fetch_add(1, std::memory_order_relaxed);
+          const Vec3f origin(start.p);
+          SobolSampler sampler(settings.seed, Hash(start.key, kValidityStream));
           int backfaces = 0;
           for (int r = 0; r < kValidityRays; ++r) {
             sampler.StartSample(uint64_t(r));
             const Vec3d wi = SampleUniformSphere(sampler.Get2D());
             SurfaceHit hit;
             ++rays;
-            if (tracer->Intersect(origin, wi, std::numeric_limits<double>::infinity(), &hit) &&
+            if (tracer.Intersect(origin, wi, std::numeric_limits<double>::infinity(), &hit) &&
                 hit.kind == SurfaceKind::kMesh && Dot(wi, hit.ng) > 0)
               ++backfaces;
           }
           const bool valid = double(backfaces) <= settings.backfaceFraction * kValidityRays;
-          volume.validity[probe] = valid ? 1.0f : 0.0f;
+          volume->validity[probe] = valid ? 1.0f : 0.0f;
           bool active = true;
           if (grid.placement == Placement::kOutsideGeometry) active = valid;
           if (grid.placement == Placement::kNearSurfaces)
-            active = valid && tracer->MeshWithin(p, grid.surfaceDistance);
-          volume.active[probe] = active ? 1 : 0;
+            active = valid && tracer.MeshWithin(start.p, grid.surfaceDistance);
+          volume->active[probe] = active ? 1 : 0;
         }
-        prepassRays.fetch_add(rays, std::memory_order_relaxed);
+        placementRays.fetch_add(rays, std::memory_order_relaxed);
       });
-
-  std::vector<int64_t> todo;
-  std::vector<std::atomic<uint8_t>> done(probeCount);
-  int64_t resumed = 0;
-  const bool resume = options.resumeFrom && options.resumeDone &&
-                      options.resumeFrom->grid.ProbeCount() == probeCount &&
-                      options.resumeDone->size() == size_t(probeCount) &&
-                      options.resumeFrom->shOrder == settings.shOrder;
-  for (int64_t probe = 0; probe < probeCount; ++probe) {
-    if (!volume.active[probe]) continue;
-    if (resume && (*options.resumeDone)[probe]) {
-      CopyProbe(*options.resumeFrom, probe, &volume);
-      done[probe].store(1, std::memory_order_relaxed);
-      ++resumed;
-      continue;
-    }
-    todo.push_back(probe);
-  }
-  const int64_t activeCount = int64_t(todo.size()) + resumed;
-  if (options.resumeFrom && !resume)
-    log->warn("resume data does not match this job; baking every probe");
-  // Not an error: a sub-grid of a sharded bake may lie wholly inside geometry, and its empty
-  // part still merges. But a whole grid that bakes nothing is most likely a mistake.
-  if (activeCount == 0)
-    log->warn("no probe to bake: the placement left out all {} grid points ({})", probeCount,
-              grid.placement == Placement::kNearSurfaces
-                  ? "inside geometry or farther than surfaceDistance from a mesh"
-                  : "inside geometry");
-  log->info("placement: {} of {} probes active ({} resumed), {} invalid, {:.3f} s", activeCount,
-            probeCount, resumed, std::count(volume.validity.begin(), volume.validity.end(), 0.0f),
-            Seconds(start));
   if (const int64_t n = onSurfaces.load(); n > 0)
-    log->info(
+    Logger("bake")->info(
         "{} grid points lie on a mesh surface; each is traced from just off it, on its front "
         "side",
         n);
+  return placementRays.load();
+}
 
-  SharedCounters counters;
-  counters.rays.fetch_add(prepassRays.load() + visibilityRays, std::memory_order_relaxed);
-  Reporter reporter(options, counters, activeCount, resumed, start, volume, done);
-  std::atomic<bool> cancelled{false};
-  FirstProbe overflow;  // a probe whose values overflowed the volume's floats
-  const std::atomic<bool>* cancel = options.cancel;
-  auto isCancelled = [&] {
-    return cancelled.load(std::memory_order_relaxed) ||
-           (cancel && cancel->load(std::memory_order_relaxed));
+// The active probes left to bake, in index order, and how many were resumed: those finished in
+// options.resumeFrom are copied into *volume and marked in *done instead, when the resume data
+// matches the job (a warning otherwise).
+struct ProbesToBake {
+  std::vector<int64_t> todo;
+  int64_t resumed = 0;
+  int64_t Active() const { return int64_t(todo.size()) + resumed; }
+};
+ProbesToBake ListProbesToBake(const BakeJob& job, const BakeOptions& options, ProbeVolume* volume,
+                              std::vector<std::atomic<uint8_t>>* done) {
+  auto log = Logger("bake");
+  const int64_t probeCount = job.grid.ProbeCount();
+  const bool resume = options.resumeFrom && options.resumeDone &&
+                      options.resumeFrom->grid.ProbeCount() == probeCount &&
+                      options.resumeDone->size() == size_t(probeCount) &&
+                      options.resumeFrom->shOrder == job.settings.shOrder;
+  if (options.resumeFrom && !resume)
+    log->warn("resume data does not match this job; baking every probe");
+  ProbesToBake list;
+  for (int64_t probe = 0; probe < probeCount; ++probe) {
+    if (!volume->active[probe]) continue;
+    if (resume && (*options.resumeDone)[probe]) {
+      CopyProbe(*options.resumeFrom, probe, volume);
+      (*done)[probe].store(1, std::memory_order_relaxed);
+      ++list.resumed;
+      continue;
+    }
+    list.todo.push_back(probe);
+  }
+  // Not an error: a sub-grid of a sharded bake may lie wholly inside geometry, and its empty
+  // part still merges. But a whole grid that bakes nothing is most likely a mistake.
+  if (list.Active() == 0)
+    log->warn("no probe to bake: the placement left out all {} grid points ({})", probeCount,
+              job.grid.placement == Placement::kNearSurfaces
+                  ? "inside geometry or farther than surfaceDistance from a mesh"
+                  : "inside geometry");
+  return list;
+}
+
+// Bakes one probe at a time into a volume: its delta lights projected exactly, then its batches
+// in rounds, then its finished coefficients. Thread-safe: probes bake in parallel, each round's
+// groups of batches too.
+class ProbeBaker {
+ public:
+  enum class Outcome {
+    kDone,     // the probe is written
+    kStopped,  // cancelled or stopped: the probe is not written
+    kOverflow  // its values overflow the volume's floats
   };
 
-  const int maxBatches = int(std::min<int64_t>(settings.batches, settings.samplesPerProbe));
-  const int batchesPerCall = int(std::clamp<int64_t>(
-      ProbeIntegrator::kSamplesPerCall / (settings.samplesPerProbe / maxBatches), 1,
-      ProbeIntegrator::kSamplesPerCall));
-  const bool adaptive = settings.targetRelError > 0;
+  // cancel: the caller's (BakeOptions::cancel, may be null), which the tracing polls too; stop:
+  // the bake's own, read between rounds.
+  ProbeBaker(const BakeJob& job, const TraceableScene& scene, const ProbeFinisher& finisher,
+             SharedCounters* counters, const std::atomic<bool>* cancel,
+             const std::atomic<bool>* stop)
+      : settings_(job.settings),
+        lights_(*scene.lights),
+        integrator_(*scene.integrator),
+        finisher_(finisher),
+        counters_(counters),
+        cancel_(cancel),
+        stop_(stop),
+        maxBatches_(int(std::min<int64_t>(settings_.batches, settings_.samplesPerProbe))),
+        batchesPerCall_(int(std::clamp<int64_t>(
+            ProbeIntegrator::kSamplesPerCall / (settings_.samplesPerProbe / maxBatches_), 1,
+            ProbeIntegrator::kSamplesPerCall))),
+        sampledMayBeNonZero_(SampledMayBeNonZero(job.scene, lights_)) {}
+
+  // Bakes the probe at start.p into probe `probe` of *volume, unless `cancel` or `stop` is raised
+  // before it is done.
+  Outcome Bake(int64_t probe, const ProbeStart& start, ProbeVolume* volume) const {
+    ProbeEstimate estimate(ShCoeffCount(settings_.shOrder), maxBatches_, sampledMayBeNonZero_);
+    AddDeltaLights(start.p, &estimate);
+    int batches = 0;
+    if (!TraceRounds(start, &estimate, &batches)) return Outcome::kStopped;
+    finisher_.Finish(estimate, batches, probe, volume);
+    return FitsInFloats(*volume, probe) ? Outcome::kDone : Outcome::kOverflow;
+  }
+
+ private:
   // Whether a sample can ever be non-zero: light to find, or delta light that a surface or a
   // medium scatters into the samples.
-  bool scatters = job.scene.medium && MaxComponent(job.scene.medium->sigmaS) > 0;
-  for (const TriangleMesh& mesh : job.scene.meshes)
-    scatters = scatters || MaxComponent(job.scene.materials[mesh.material].albedo) > 0;
-  const bool sampledMayBeNonZero =
-      lights.HasEmission(/*delta=*/false) || (lights.HasEmission(/*delta=*/true) && scatters);
-
-  tbb::parallel_for(
-      tbb::blocked_range<size_t>(0, todo.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
-        for (size_t t = range.begin(); t != range.end(); ++t) {
-          if (isCancelled()) return;
-          const int64_t probe = todo[t];
-          const ProbeSite site = siteOf(probe);
-          // Found again rather than kept from the placement pass: one point query against
-          // thousands of rays, where keeping it would cost 24 bytes for every grid point.
-          int moves;
-          const Vec3d p = TraceOrigin(*tracer, site.local, &moves);
-          ProbeEstimate estimate(coeffs, maxBatches, sampledMayBeNonZero);
-
-          // Delta lights project exactly (SPEC 3): c_i += (I / d^2) V Y_i(w), once per probe.
-          TraceCounters exactCounters;
-          for (uint32_t light : lights.deltaLights()) {
-            LightSample s;
-            if (!lights.EvalDelta(light, p, &s)) continue;
-            // Visibility, times the medium's transmittance when there is one.
-            const Vec3d tr = integrator.ShadowTransmittance(Vec3f(p), s, &exactCounters);
-            if (MaxComponent(tr) > 0) estimate.AddExact(settings.shOrder, s.wi, s.radiance * tr);
-          }
-          counters.Add(exactCounters);
-
-          // Batches run in rounds: all of them at once, or (adaptive) a first round of
-          // kMinAdaptiveBatches and then pairs until the error target is met at two successive
-          // rounds (bake.h). The rounds are fixed by the settings alone, so the result never
-          // depends on the thread count.
-          int next = 0;
-          bool metBefore = false;  // the previous round's bound was under the target
-          while (next < maxBatches) {
-            const int roundEnd =
-                !adaptive ? maxBatches
-                          : std::min(maxBatches, next == 0 ? kMinAdaptiveBatches : next + 2);
-            // Consecutive batches in groups of about ProbeIntegrator::kSamplesPerCall samples,
-            // so that the rays from the probe of small batches share packets (same sums).
-            const int groups = (roundEnd - next + batchesPerCall - 1) / batchesPerCall;
-            tbb::parallel_for(0, groups, [&](int g) {
-              const int first = next + g * batchesPerCall;
-              const int end = std::min(roundEnd, first + batchesPerCall);
-              ProbeIntegrator::BatchWork work[ProbeIntegrator::kSamplesPerCall];
-              for (int b = first; b < end; ++b)
-                work[b - first] = {BatchSize(settings.samplesPerProbe, maxBatches, b),
-                                   estimate.BatchSum(b)};
-              if (!integrator.TraceBatches(p, site.key, uint32_t(first),
-                                           {work, size_t(end - first)}, &counters, cancel)) {
-                cancelled.store(true, std::memory_order_relaxed);
-              }
-              for (int b = first; b < end; ++b) estimate.SetBatchSamples(b, work[b - first].count);
-            });
-            if (isCancelled()) return;
-            next = roundEnd;
-            if (adaptive) {
-              const bool met =
-                  AdaptiveErrorBound(estimate.RelativeError(next), next) <= settings.targetRelError;
-              if (met && metBefore) break;
-              metBefore = met;
-            }
-          }
-          finisher.Finish(estimate, next, probe, &volume);
-          if (!FitsInFloats(volume, probe)) {
-            overflow.Note(probe);
-            cancelled.store(true, std::memory_order_relaxed);
-            return;
-          }
-          done[probe].store(1, std::memory_order_release);
-          reporter.ProbeDone(volume.stdError[probe]);
-        }
-      });
-
-  if (const int64_t probe = overflow.First(); probe >= 0) {
-    reporter.Stop(/*checkpoint=*/false);
-    int i, j, k;
-    grid.Coords(probe, &i, &j, &k);
-    const Vec3d at = grid.Position(i, j, k);
-    const std::string message = absl::StrCat(
-        "grid: the probe (", i, ", ", j, ", ", k, ") at (", at.x, ", ", at.y, ", ", at.z,
-        ") receives more light than the volume's 32-bit floats hold (over 3.4e38 in a "
-        "coefficient): is a point or spot light almost on it? (their light grows as 1 / d^2)");
-    log->error("{}", message);
-    return absl::InvalidArgumentError(message);
+  static bool SampledMayBeNonZero(const Scene& scene, const LightSet& lights) {
+    bool scatters = scene.medium && MaxComponent(scene.medium->sigmaS) > 0;
+    for (const TriangleMesh& mesh : scene.meshes)
+      scatters = scatters || MaxComponent(scene.materials[mesh.material].albedo) > 0;
+    return lights.HasEmission(/*delta=*/false) || (lights.HasEmission(/*delta=*/true) && scatters);
   }
-  if (isCancelled()) {
+
+  // Delta lights project exactly (docs/job-format.md, scene.lights): c_i += (I / d^2) V Y_i(w),
+  // once per probe, V the visibility times the medium's transmittance when there is one.
+  void AddDeltaLights(const Vec3d& p, ProbeEstimate* estimate) const {
+    TraceCounters counters;
+    for (uint32_t light : lights_.deltaLights()) {
+      LightSample s;
+      if (!lights_.EvalDelta(light, p, &s)) continue;
+      const Vec3d tr = integrator_.ShadowTransmittance(Vec3f(p), s, &counters);
+      if (MaxComponent(tr) > 0) estimate->AddExact(settings_.shOrder, s.wi, s.radiance * tr);
+    }
+    counters_->Add(counters);
+  }
+
+  // Traces the probe's batches in rounds: all of them at once, or (adaptive) a first round of
+  // kMinAdaptiveBatches and then pairs until the error target is met at two successive rounds
+  // (bake.h). The rounds are fixed by the settings alone, so the result never depends on the
+  // thread count. Sets *batches to the batches traced; false when stopped.
+  bool TraceRounds(const ProbeStart& start, ProbeEstimate* estimate, int* batches) const {
+    const bool adaptive = settings_.targetRelError > 0;
+    int next = 0;
+    bool metBefore = false;  // the previous round's bound was under the target
+    while (next < maxBatches_) {
+      const int roundEnd = !adaptive
+                               ? maxBatches_
+                               : std::min(maxBatches_, next == 0 ? kMinAdaptiveBatches : next + 2);
+      if (!TraceBatches(start, next, roundEnd, estimate) || Stopped()) return false;
+      next = roundEnd;
+      if (adaptive) {
+        const bool met =
+            AdaptiveErrorBound(estimate->RelativeError(next), next) <= settings_.targetRelError;
+        if (met && metBefore) break;
+        metBefore = met;
+      }
+    }
+    *batches = next;
+    return true;
+  }
+
+  // Traces batches [first, end) in parallel, consecutive batches in groups of about
+  // ProbeIntegrator::kSamplesPerCall samples, so that the rays from the probe of small batches
+  // share packets (same sums). False when cancelled.
+  bool TraceBatches(const ProbeStart& start, int first, int end, ProbeEstimate* estimate) const {
+    std::atomic<bool> cancelled{false};  // the tracing saw `cancel` raised
+    const int groups = (end - first + batchesPerCall_ - 1) / batchesPerCall_;
+    tbb::parallel_for(0, groups, [&](int g) {
+      const int from = first + g * batchesPerCall_;
+      const int to = std::min(end, from + batchesPerCall_);
+      ProbeIntegrator::BatchWork work[ProbeIntegrator::kSamplesPerCall];
+      for (int b = from; b < to; ++b)
+        work[b - from] = {BatchSize(settings_.samplesPerProbe, maxBatches_, b),
+                          estimate->BatchSum(b)};
+      if (!integrator_.TraceBatches(start.p, start.key, uint32_t(from), {work, size_t(to - from)},
+                                    counters_, cancel_))
+        cancelled.store(true, std::memory_order_relaxed);
+      for (int b = from; b < to; ++b) estimate->SetBatchSamples(b, work[b - from].count);
+    });
+    return !cancelled.load();
+  }
+
+  bool Stopped() const {
+    return stop_->load(std::memory_order_relaxed) ||
+           (cancel_ && cancel_->load(std::memory_order_relaxed));
+  }
+
+  const BakeSettings& settings_;
+  const LightSet& lights_;
+  const ProbeIntegrator& integrator_;
+  const ProbeFinisher& finisher_;
+  SharedCounters* counters_;
+  const std::atomic<bool>* cancel_;
+  const std::atomic<bool>* stop_;
+  const int maxBatches_;
+  const int batchesPerCall_;
+  const bool sampledMayBeNonZero_;
+};
+
+// How BakeProbes ended: every probe baked, cancelled, or stopped by a probe whose values overflow
+// the volume's floats (the lowest such probe).
+struct BakeRun {
+  bool cancelled = false;
+  int64_t overflow = -1;
+};
+
+// Bakes the probes of `todo` in parallel into *volume, marking each in *done and telling the
+// reporter as it is finished. Stops at options.cancel or at the first probe that overflows.
+BakeRun BakeProbes(const BakeJob& job, const BakeOptions& options, const TraceableScene& scene,
+                   const ProbeSites& sites, const ProbeFinisher& finisher,
+                   const std::vector<int64_t>& todo, SharedCounters* counters, Reporter* reporter,
+                   ProbeVolume* volume, std::vector<std::atomic<uint8_t>>* done) {
+  // Raised when a probe is cancelled or overflows: the other probes stop at their next round.
+  std::atomic<bool> stop{false};
+  FirstProbe overflow;
+  const std::atomic<bool>* cancel = options.cancel;
+  auto stopped = [&] {
+    return stop.load(std::memory_order_relaxed) ||
+           (cancel && cancel->load(std::memory_order_relaxed));
+  };
+  const ProbeBaker baker(job, scene, finisher, counters, cancel, &stop);
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, todo.size(), 1),
+                    [&](const tbb::blocked_range<size_t>& range) {
+                      for (size_t t = range.begin(); t != range.end(); ++t) {
+                        if (stopped()) return;
+                        const int64_t probe = todo[t];
+                        // Found again rather than kept from the placement: one point query against
+                        // thousands of rays, where keeping it would cost 24 bytes for every grid
+                        // point.
+                        const ProbeStart start = StartOf(job.grid, sites, *scene.tracer, probe);
+                        switch (baker.Bake(probe, start, volume)) {
+                          case ProbeBaker::Outcome::kDone:
+                            (*done)[probe].store(1, std::memory_order_release);
+                            reporter->ProbeDone(volume->stdError[probe]);
+                            break;
+                          case ProbeBaker::Outcome::kStopped:
+                            stop.store(true, std::memory_order_relaxed);
+                            return;
+                          case ProbeBaker::Outcome::kOverflow:
+                            overflow.Note(probe);
+                            stop.store(true, std::memory_order_relaxed);
+                            return;
+                        }
+                      }
+                    });
+  BakeRun run;
+  run.overflow = overflow.First();
+  run.cancelled = stopped();
+  return run;
+}
+
+// The error of a bake stopped by a probe whose values overflow the volume's floats.
+absl::Status OverflowError(const ProbeGrid& grid, int64_t probe) {
+  int i, j, k;
+  grid.Coords(probe, &i, &j, &k);
+  const Vec3d at = grid.Position(i, j, k);
+  return absl::InvalidArgumentError(absl::StrCat(
+      "grid: the probe (", i, ", ", j, ", ", k, ") at (", at.x, ", ", at.y, ", ", at.z,
+      ") receives more light than the volume's 32-bit floats hold (over 3.4e38 in a "
+      "coefficient): is a point or spot light almost on it? (their light grows as 1 / d^2)"));
+}
+
+// Records, once every probe is baked, the AUTO window's summary (when per-probe windows were
+// chosen) and the bake's statistics.
+void FinishVolume(int64_t activeCount, const SharedCounters& counters, int threads,
+                  Clock::time_point start, ProbeVolume* volume) {
+  const int64_t probeCount = volume->grid.ProbeCount();
+  if (!volume->autoWindowT.empty()) {
+    int64_t windowed = 0;
+    double maxT = 0;
+    for (int64_t p = 0; p < probeCount; ++p) {
+      if (!volume->active[p] || volume->autoWindowT[p] <= 0) continue;
+      ++windowed;
+      maxT = std::max(maxT, double(volume->autoWindowT[p]));
+    }
+    volume->window = AutoWindowSummary(windowed, activeCount, maxT);
+  }
+  volume->stats.wallSeconds = Seconds(start);
+  volume->stats.threads = threads;
+  volume->stats.probes = activeCount;
+  volume->stats.samples = counters.samples.load();
+  volume->stats.rays = counters.rays.load();
+  int64_t invalid = 0;
+  for (int64_t probe = 0; probe < probeCount; ++probe)
+    if (volume->active[probe] && volume->validity[probe] == 0.0f) ++invalid;
+  volume->stats.invalidProbes = invalid;
+}
+
+absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& options,
+                                        int threads) {
+  const auto start = Clock::now();
+  auto log = Logger("bake");
+  const BakeSettings& settings = job.settings;
+  const int64_t probeCount = job.grid.ProbeCount();
+
+  PB_ASSIGN_OR_RETURN(const TraceableScene scene, TraceableScene::Build(job, options));
+  log->info(
+      "scene ready in {:.3f} s: {} meshes, {} lights ({} chosen through light trees), {} probes, "
+      "order {}, {} samples/probe",
+      Seconds(start), job.scene.meshes.size(), scene.lights->Count(),
+      scene.lights->TreeLightCount(), probeCount, settings.shOrder, settings.samplesPerProbe);
+
+  const ProbeFinisher finisher(settings);
+  ProbeVolume volume = NewVolume(job, options, finisher);
+  const ProbeSites sites(job.scene, scene.offset);
+  const int64_t placementRays = PlaceProbes(job, *scene.tracer, sites, &volume);
+  std::vector<std::atomic<uint8_t>> done(probeCount);
+  const ProbesToBake list = ListProbesToBake(job, options, &volume, &done);
+  log->info("placement: {} of {} probes active ({} resumed), {} invalid, {:.3f} s", list.Active(),
+            probeCount, list.resumed,
+            std::count(volume.validity.begin(), volume.validity.end(), 0.0f), Seconds(start));
+
+  SharedCounters counters;
+  counters.rays.fetch_add(placementRays + scene.visibilityRays, std::memory_order_relaxed);
+  Reporter reporter(options, counters, list.Active(), list.resumed, start, volume, done);
+  const BakeRun run = BakeProbes(job, options, scene, sites, finisher, list.todo, &counters,
+                                 &reporter, &volume, &done);
+  if (run.overflow >= 0) {
+    reporter.Stop(/*checkpoint=*/false);
+    const absl::Status error = OverflowError(job.grid, run.overflow);
+    log->error("{}", std::string(error.message()));
+    return error;
+  }
+  if (run.cancelled) {
     reporter.Stop(/*checkpoint=*/true);
     log->info("cancelled after {:.3f} s", Seconds(start));
     return absl::CancelledError("bake cancelled");
   }
 
-  if (!volume.autoWindowT.empty()) {
-    int64_t windowed = 0;
-    double maxT = 0;
-    for (int64_t p = 0; p < probeCount; ++p) {
-      if (!volume.active[p] || volume.autoWindowT[p] <= 0) continue;
-      ++windowed;
-      maxT = std::max(maxT, double(volume.autoWindowT[p]));
-    }
-    volume.window = AutoWindowSummary(windowed, activeCount, maxT);
-  }
-  volume.stats.wallSeconds = Seconds(start);
-  volume.stats.threads = threads;
-  volume.stats.probes = activeCount;
-  volume.stats.samples = counters.samples.load();
-  volume.stats.rays = counters.rays.load();
-  int64_t invalid = 0;
-  for (int64_t probe = 0; probe < probeCount; ++probe)
-    if (volume.active[probe] && volume.validity[probe] == 0.0f) ++invalid;
-  volume.stats.invalidProbes = invalid;
+  FinishVolume(list.Active(), counters, threads, start, &volume);
   reporter.Stop(/*checkpoint=*/false);
-  log->info("baked {} probes in {:.3f} s: {} samples, {} rays ({:.2f} Mrays/s)", activeCount,
+  log->info("baked {} probes in {:.3f} s: {} samples, {} rays ({:.2f} Mrays/s)", list.Active(),
             volume.stats.wallSeconds, volume.stats.samples, volume.stats.rays,
             volume.stats.rays / std::max(volume.stats.wallSeconds, 1e-9) * 1e-6);
   return volume;

@@ -5,16 +5,13 @@
 //
 // Against the balance heuristic p_a / (p_a + p_b) it moves weight to whichever technique is the
 // likelier there, so less of the estimate rides on the other's rare samples (uniform directions
-// that happen to hit a small light), a discontinuous integrand that Sobol points stratify poorly.
-// The bench at 4096 samples per probe (one thread, equal time) measured the mean irradiance error
-// with Sobol: the closed-form sky and sphere light 0.374% -> 0.152% (5.7x less time to equal
-// error), the demo room 2.86% -> 2.82%, the courtyard 1.75% -> 1.71%; with independent numbers
-// 1.04% -> 1.12%, 3.84% -> 3.81% and 2.64% -> 2.65%.
+// that happen to hit a small light), a discontinuous integrand that Sobol points stratify poorly;
+// on a small bright light it needs several times less time to equal error
+// (docs/performance-history.md).
 //
 // One division where p_a^2 is normal and p_a^2 + p_b^2 finite: these divisions sit on each path
-// vertex's dependency chain (perf put a tenth of the wave loop's samples on the three divisions of
-// the form below; one each: 0.98x the demo room's CPU time). Where the squares underflow or
-// overflow, the form 1 / (1 + (p_b / p_a)^2), which neither does (p_a = 0 gives 0, p_a = inf 1).
+// vertex's dependency chain. Where the squares underflow or overflow, the form
+// 1 / (1 + (p_b / p_a)^2), which neither does (p_a = 0 gives 0, p_a = inf 1).
 #pragma once
 
 #include <algorithm>

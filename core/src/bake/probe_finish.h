@@ -1,5 +1,6 @@
 // From sample sums to a stored probe: the mean SH coefficients, the standard error from the
-// independent batches, irradiance and its window (SPEC 2, 3).
+// independent batches, irradiance and its window (docs/spherical-harmonics.md,
+// docs/accuracy-and-speed.md).
 //
 // Error estimate: batch b is an independent randomisation (its own scrambled Sobol stream, or its
 // own random numbers) of n_b samples with sum S_b, so its mean m_b = S_b / n_b is an unbiased,

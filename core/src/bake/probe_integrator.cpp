@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numbers>
 #include <type_traits>
+#include <vector>
 
 #include "power_heuristic.h"
 #include "probebake/base/check.h"
@@ -20,6 +22,13 @@ namespace {
 
 constexpr double kInvPi = std::numbers::inv_pi;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Dimension sets drawn at the probe (direction, light choice, light point) and at each
+// scattering vertex (VertexNumbers).
+constexpr uint64_t kProbeSets = 3, kVertexSets = 4;
+
+// A ray's slot when there is no such ray, and when a shadow ray needs no tracing (visible).
+constexpr uint16_t kNoRay = 0xFFFF, kVisible = 0xFFFE;
 
 // sum[3 i + c] += Y_i(w) value[c].
 void Project(int order, const Vec3d& w, const Vec3d& value, std::span<double> sum) {
@@ -62,7 +71,244 @@ int SortSlots(const uint16_t* keys, int n, int buckets, uint16_t* slot) {
   return placed;
 }
 
+// Packets want rays that are neighbours on the sphere; Sobol points in index order are spread
+// over the whole sphere on purpose. So the rays from the probe are put in packets in the order
+// of a counting sort by cell: the probe directions by their cell of 2^kCellBits x 2^kCellBits in
+// the (z, phi) square they are drawn from (SampleUniformSphere), along a Morton curve (an aligned
+// chunk of 2^(2 kCellBits) Sobol points is a (0, 2 kCellBits, 2)-net: one point in each); the
+// shadow rays by light and by octahedral cell of their direction.
+template <int kCellBits>
+[[gnu::always_inline]] inline uint32_t CellIndex(double x) {  // x in [0, 1]
+  return std::min(uint32_t(x * (1 << kCellBits)), (1u << kCellBits) - 1);
+}
+
+template <int kCellBits>
+[[gnu::always_inline]] inline uint16_t DirectionCell(const Vec2d& u) {
+  return uint16_t(MortonInterleave(CellIndex<kCellBits>(u.x), CellIndex<kCellBits>(u.y)));
+}
+
+template <int kCellBits>
+[[gnu::always_inline]] inline uint16_t ShadowCell(const Vec3d& d, uint32_t light) {
+  // Octahedral map of the direction, then cells of 2^(kCellBits - 1) squared per light.
+  const double l1 = std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z);
+  const double inv = 1 / l1;
+  double ox = d.x * inv, oy = d.y * inv;
+  if (d.z < 0) {
+    const double fx = (1 - std::fabs(oy)) * (ox < 0 ? -1 : 1);
+    oy = (1 - std::fabs(ox)) * (oy < 0 ? -1 : 1);
+    ox = fx;
+  }
+  constexpr int kHalf = kCellBits - 1;
+  constexpr uint32_t kLightGroups = 4;  // 4 x 2^(2 kHalf) = 2^(2 kCellBits) buckets
+  const uint32_t cx = CellIndex<kCellBits>(0.5 * (ox + 1)) >> 1;
+  const uint32_t cy = CellIndex<kCellBits>(0.5 * (oy + 1)) >> 1;
+  return uint16_t(((light % kLightGroups) << (2 * kHalf)) | MortonInterleave(cx, cy));
+}
+
+// The shadow rays of one wave, or of a group's light samples at the probe. Ray r's `key` is its
+// packet bucket, or a marker (kNoRay, kVisible) when it is not traced; once traced, slot[r] is
+// its place in the packets (or its marker) and occluded[slot[r]] its answer.
+template <int kWidth>
+struct ShadowRays {
+  int count = 0;
+  Vec3f origin[kWidth];  // [0] alone when the rays share an origin
+  Vec3d dir[kWidth];
+  double tMax[kWidth];
+  uint16_t key[kWidth];
+  uint16_t slot[kWidth];
+  bool occluded[kWidth];  // by slot
+  // The traced rays by slot, for the packets (kept here: arrays of vectors are zeroed when made).
+  Vec3f sortedOrigin[kWidth];
+  Vec3d sortedDir[kWidth];
+  double sortedTMax[kWidth];
+
+  // Whether ray r's light sample reaches its origin, ignoring a medium.
+  bool Reaches(int r) const {
+    const uint16_t k = slot[r];
+    return k < kVisible ? !occluded[k] : k == kVisible;
+  }
+};
+
+// Traces rays->count shadow rays: as packets of rays sorted by key (keys below `buckets`), or,
+// in groups of one, the one ray alone. sharedOrigin: every ray starts at origin[0].
+template <int kWidth>
+void TraceShadowRays(const TracerScene& tracer, int buckets, bool sharedOrigin,
+                     ShadowRays<kWidth>* rays) {
+  if constexpr (kWidth == 1) {
+    if (rays->count == 0) return;
+    rays->slot[0] = rays->key[0] < buckets ? 0 : rays->key[0];
+    if (rays->slot[0] == 0)
+      rays->occluded[0] = tracer.Occluded(rays->origin[0], rays->dir[0], rays->tMax[0]);
+  } else {
+    static_assert(kWidth <= kVisible, "slots never meet the markers");
+    const int traced = SortSlots(rays->key, rays->count, buckets, rays->slot);
+    for (int r = 0; r < rays->count; ++r) {
+      const uint16_t k = rays->slot[r];
+      if (k == kNoRay || k == kVisible) continue;
+      if (!sharedOrigin) rays->sortedOrigin[k] = rays->origin[r];
+      rays->sortedDir[k] = rays->dir[r];
+      rays->sortedTMax[k] = rays->tMax[r];
+    }
+    constexpr int kPacket = TracerScene::kPacketWidth;
+    for (int k = 0; k < traced; k += kPacket) {
+      const size_t m = size_t(std::min(kPacket, traced - k));
+      tracer.OccludedPacket(sharedOrigin ? std::span<const Vec3f>(rays->origin, 1)
+                                         : std::span<const Vec3f>(rays->sortedOrigin + k, m),
+                            std::span<const Vec3d>(rays->sortedDir + k, m), rays->sortedTMax + k,
+                            rays->occluded + k);
+    }
+  }
+}
+
+// found[k], hits[k] (left alone on a miss) of the rays from origins[k] (or origins[0] for all)
+// along dirs[k], k < n: as packets in this order, or, in groups of one, the one ray alone.
+template <int kWidth>
+void IntersectRays(const TracerScene& tracer, std::span<const Vec3f> origins, const Vec3d* dirs,
+                   int n, SurfaceHit* hits, bool* found) {
+  if constexpr (kWidth == 1) {
+    if (n > 0) found[0] = tracer.Intersect(origins[0], dirs[0], kInf, &hits[0]);
+  } else {
+    constexpr int kPacket = TracerScene::kPacketWidth;
+    const bool shared = origins.size() == 1;
+    for (int k = 0; k < n; k += kPacket) {
+      const size_t m = size_t(std::min(kPacket, n - k));
+      tracer.IntersectPacket(shared ? origins : origins.subspan(size_t(k), m),
+                             std::span<const Vec3d>(dirs + k, m), hits + k, found + k);
+    }
+  }
+}
+
+// A path between two waves.
+struct PathState {
+  Vec3d radiance;  // gathered so far
+  Vec3d beta;      // the throughput of its ray in flight
+  Vec3d wi;        // that ray's direction, drawn with pdf pdfDir
+  double pdfDir = 0;
+  Vec3f origin;  // that ray's origin, kept with a medium only (where the segment starts)
+  // The vertex the ray leaves: its point, its shading normal (none at the probe and in a
+  // medium) and the sum of its light importance.
+  Vec3d pPrev, nPrev;
+  bool hasNormal = false;
+  double total = 0;
+};
+
+// Right after a restart, draw(numbers) draws from `numbers` as it would from the sampler: a
+// Sobol sampler's next kSobolChunk sets computed at once (GetChunk) and read set by set, as its
+// own calls would read them, or the sampler itself.
+template <typename S, typename Draw>
+[[gnu::always_inline]] inline void DrawFromChunk(S& sampler, Draw&& draw) {
+  if constexpr (std::is_same_v<S, SobolSampler>) {
+    struct ChunkReader {
+      const uint32_t *x, *y;
+      double Get1D() {
+        const double u = U32ToUnit(*x);
+        ++x, ++y;  // a Get1D call uses its set's x alone
+        return u;
+      }
+      Vec2d Get2D() {
+        const Vec2d u{U32ToUnit(*x), U32ToUnit(*y)};
+        ++x, ++y;
+        return u;
+      }
+    } chunk;
+    sampler.GetChunk(&chunk.x, &chunk.y);
+    draw(chunk);
+  } else {
+    draw(sampler);
+  }
+}
+
+// A position in the samples of several batches run one after the other: sample `index` of
+// work[batch] (empty batches are skipped).
+struct SampleCursor {
+  explicit SampleCursor(std::span<const ProbeIntegrator::BatchWork> w) : work(w) { Skip(); }
+  void Next() {
+    ++index;
+    Skip();
+  }
+  void Skip() {
+    while (batch < work.size() && index >= work[batch].count) ++batch, index = 0;
+  }
+  std::span<const ProbeIntegrator::BatchWork> work;
+  size_t batch = 0;
+  int64_t index = 0;
+};
+
 }  // namespace
+
+// The random numbers of one scattering vertex, in the order they are drawn.
+struct ProbeIntegrator::VertexNumbers {
+  double select = 0;  // light choice
+  Vec2d light;        // light point
+  Vec2d next;         // continuation direction
+  double roulette = 0;
+};
+
+// A scattering vertex once shaded, before its rays are traced.
+struct ProbeIntegrator::Vertex {
+  Vec3d x;           // in the medium: where it lies (a surface vertex lies at its hit)
+  Vec3d n;           // on a surface: the shading normal, toward the side the path came from
+  Vec3f spawn;       // the origin of its rays
+  double total = 0;  // the sum of its light importance
+  // Its light sample, when one was drawn that can reach it: neeBase tr neeScale is its
+  // contribution, tr what reaches the vertex along the shadow ray (ProbeIntegrator::Arrived).
+  bool lightSampled = false;
+  LightSample ls;
+  Vec3d neeBase;
+  double neeScale = 0;
+  // Whether the path goes on (not absorbed or stopped by roulette), along wi (pdf pdfDir).
+  bool continues = false;
+  Vec3d wi;
+  double pdfDir = 0;
+};
+
+// The probe of a call: its point, the origin of its rays and its light importance.
+struct ProbeIntegrator::Probe {
+  Vec3d p;
+  Vec3f origin;
+  std::span<const double> importance;
+  double total = 0;
+  double pdf = UniformSpherePdf();  // of the path's first direction
+  bool lightSample = false;         // a light is sampled at the probe
+};
+
+// Up to kWidth samples traced together: started at the probe together, then wave by wave. "By
+// sample": index j of the group's sample j; "by slot": the ray's place in the wave's packets
+// (the same for groups of one).
+template <int kWidth>
+struct ProbeIntegrator::Group {
+  int n = 0;
+  uint32_t batch[kWidth];  // by sample: its batch (index into the samplers) ...
+  int64_t index[kWidth];   // ... and its index there
+  Vec3d wi[kWidth];        // by sample: the probe direction
+  // The light samples at the probe: by sample, with their shadow rays by sample (key kNoRay when
+  // none was drawn).
+  LightSample light[kWidth];
+  ShadowRays<kWidth> probeShadow;
+  PathState path[kWidth];  // by sample
+  // By sample, without a medium: the random numbers of the vertex its ray in flight will find,
+  // and of the one after it when they were drawn together (one Sobol chunk holds two vertices'
+  // sets).
+  VertexNumbers vertex[kWidth];
+  VertexNumbers after[kWidth];
+  // The wave's paths by slot of their ray in flight, and that ray's hit (valid when found).
+  uint16_t active[kWidth];
+  bool found[kWidth];
+  SurfaceHit hit[kWidth];
+  // The next wave's paths and rays, in the order of this one (and the first rays, sorted).
+  uint16_t next[kWidth];
+  Vec3f nextOrigin[kWidth];
+  Vec3d nextDir[kWidth];
+  // The wave's shadow rays, each with its path and its light sample's neeBase and neeScale.
+  ShadowRays<kWidth> shadow;
+  uint16_t shadowPath[kWidth];
+  Vec3d neeBase[kWidth];
+  double neeScale[kWidth];
+  // The light importance (LightSet::ImportanceSize() entries each) at the probe, and by sample at
+  // the vertices of odd and even depth.
+  std::vector<double> probeImportance;
+  std::vector<double> importance[2];
+};
 
 template <typename S>
 [[gnu::always_inline]] inline ProbeIntegrator::VertexNumbers ProbeIntegrator::DrawVertexNumbers(
@@ -78,40 +324,16 @@ template <typename S>
 template <typename S>
 [[gnu::always_inline]] inline void ProbeIntegrator::DrawTwoVertices(S& sampler, VertexNumbers* a,
                                                                     VertexNumbers* b) {
-  if constexpr (std::is_same_v<S, SobolSampler>) {
-    static_assert(kSobolChunk == 2 * kVertexSets);
-    // The chunk read set by set, as the sampler's own calls would, so that DrawVertexNumbers
-    // alone says which set holds which number.
-    struct ChunkReader {
-      const uint32_t *x, *y;
-      double Get1D() {
-        const double u = U32ToUnit(*x);
-        ++x, ++y;  // a Get1D call uses its set's x alone
-        return u;
-      }
-      Vec2d Get2D() {
-        const Vec2d u{U32ToUnit(*x), U32ToUnit(*y)};
-        ++x, ++y;
-        return u;
-      }
-    } chunk;
-    sampler.GetChunk(&chunk.x, &chunk.y);
-    *a = DrawVertexNumbers(chunk);
-    *b = DrawVertexNumbers(chunk);
-  } else {
-    *a = DrawVertexNumbers(sampler);
-    *b = DrawVertexNumbers(sampler);
-  }
+  static_assert(2 * kVertexSets == kSobolChunk);
+  DrawFromChunk(sampler, [&](auto& numbers) {
+    *a = DrawVertexNumbers(numbers);
+    *b = DrawVertexNumbers(numbers);
+  });
 }
 
 ProbeIntegrator::ProbeIntegrator(const Scene& scene, const TracerScene& tracer,
-                                 const LightSet& lights, const BakeSettings& settings,
-                                 bool probePackets)
-    : scene_(scene),
-      tracer_(tracer),
-      lights_(lights),
-      settings_(settings),
-      probePackets_(probePackets) {
+                                 const LightSet& lights, const BakeSettings& settings, bool packets)
+    : scene_(scene), tracer_(tracer), lights_(lights), settings_(settings), packets_(packets) {
   if (scene.medium) medium_.emplace(*scene.medium, tracer.offset());
   switch (settings.estimator) {
     case Estimator::kNeeMis:
@@ -145,26 +367,22 @@ bool ProbeIntegrator::ShadowRay(const Vec3f& origin, const LightSample& s, Vec3d
   return *tMax > 0;
 }
 
-bool ProbeIntegrator::Unoccluded(const Vec3f& origin, const LightSample& s, TraceCounters* counters,
-                                 Vec3d* dir, double* tMax) const {
-  ++counters->rays;
-  if (!ShadowRay(origin, s, dir, tMax)) return true;
-  return !tracer_.Occluded(origin, *dir, *tMax);
-}
-
 template <bool kMedium>
-Vec3d ProbeIntegrator::Shadow(const Vec3f& origin, const LightSample& s,
-                              TraceCounters* counters) const {
-  Vec3d dir;
-  double tMax;
-  if (!Unoccluded(origin, s, counters, &dir, &tMax)) return {};
+[[gnu::always_inline]] inline Vec3d ProbeIntegrator::Arrived(bool occluded, const Vec3f& origin,
+                                                             const Vec3d& dir, double tMax) const {
+  if (occluded) return {};
   if constexpr (kMedium) return medium_->Transmittance(Vec3d(origin), dir, std::max(tMax, 0.0));
   return {1, 1, 1};
 }
 
 Vec3d ProbeIntegrator::ShadowTransmittance(const Vec3f& origin, const LightSample& s,
                                            TraceCounters* counters) const {
-  return medium_ ? Shadow<true>(origin, s, counters) : Shadow<false>(origin, s, counters);
+  ++counters->rays;  // counted whether traced or not, as the driver counts its shadow rays
+  Vec3d dir;
+  double tMax;
+  const bool occluded = ShadowRay(origin, s, &dir, &tMax) && tracer_.Occluded(origin, dir, tMax);
+  return medium_ ? Arrived<true>(occluded, origin, dir, tMax)
+                 : Arrived<false>(occluded, origin, dir, tMax);
 }
 
 bool ProbeIntegrator::TraceBatch(const Vec3d& p, uint64_t probeKey, uint32_t batch, int64_t count,
@@ -177,26 +395,33 @@ bool ProbeIntegrator::TraceBatch(const Vec3d& p, uint64_t probeKey, uint32_t bat
 bool ProbeIntegrator::TraceBatches(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
                                    std::span<const BatchWork> work, SharedCounters* shared,
                                    const std::atomic<bool>* cancel) const {
+  int64_t count = 0;
+  for (const BatchWork& w : work) count += w.count;
   const bool sobol = settings_.sampler == SamplerKind::kSobol;
+  // A medium's paths draw their numbers one after the other from their batch's sampler
+  // (TraceWaves), which only a group of one leaves to them.
   if (medium_) {
-    return sobol
-               ? TraceBatchesWith<true, SobolSampler>(p, probeKey, firstBatch, work, shared, cancel)
-               : TraceBatchesWith<true, IndependentSampler>(p, probeKey, firstBatch, work, shared,
+    return sobol ? TraceGroups<true, 1, SobolSampler>(p, probeKey, firstBatch, work, shared, cancel)
+                 : TraceGroups<true, 1, IndependentSampler>(p, probeKey, firstBatch, work, shared,
                                                             cancel);
   }
-  return sobol
-             ? TraceBatchesWith<false, SobolSampler>(p, probeKey, firstBatch, work, shared, cancel)
-             : TraceBatchesWith<false, IndependentSampler>(p, probeKey, firstBatch, work, shared,
+  if (packets_ && count >= kMinPacketSamples) {
+    return sobol ? TraceGroups<false, kChunk, SobolSampler>(p, probeKey, firstBatch, work, shared,
+                                                            cancel)
+                 : TraceGroups<false, kChunk, IndependentSampler>(p, probeKey, firstBatch, work,
+                                                                  shared, cancel);
+  }
+  return sobol ? TraceGroups<false, 1, SobolSampler>(p, probeKey, firstBatch, work, shared, cancel)
+               : TraceGroups<false, 1, IndependentSampler>(p, probeKey, firstBatch, work, shared,
                                                            cancel);
 }
 
-template <bool kMedium, typename S>
-bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
-                                       std::span<const BatchWork> work, SharedCounters* shared,
-                                       const std::atomic<bool>* cancel) const {
+template <bool kMedium, int kWidth, typename S>
+bool ProbeIntegrator::TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
+                                  std::span<const BatchWork> work, SharedCounters* shared,
+                                  const std::atomic<bool>* cancel) const {
+  static_assert(kWidth == 1 || (!kMedium && kWidth == kChunk));
   TraceCounters local;
-  const int order = settings_.shOrder;
-  const Vec3f origin(p);
   std::vector<S> samplers;
   samplers.reserve(work.size());
   int64_t count = 0;  // samples of all the batches, traced as one run
@@ -204,299 +429,249 @@ bool ProbeIntegrator::TraceBatchesWith(const Vec3d& p, uint64_t probeKey, uint32
     samplers.emplace_back(settings_.seed, Hash(probeKey, uint64_t(firstBatch + k)));
     count += work[k].count;
   }
-  std::vector<double> importanceProbe(lights_.ImportanceSize()), scratchA(lights_.ImportanceSize()),
-      scratchB(lights_.ImportanceSize());
-  const double totalProbe = lights_.Importance(p, nullptr, /*includeDelta=*/false, importanceProbe);
-  const double pdfProbe = UniformSpherePdf();
-  const bool probeLightSample = lightSampling_ && totalProbe > 0;
-  // Without a medium, a chunk of samples at a time has its paths traced as waves of packets
-  // (TraceWaves) before its sums are added up.
-  // One buffer per thread, kept: zeroing it (then 55 KB, now over 100 KB) anew for every call
-  // took 0.5% of a bake's CPU samples (perf, memset).
-  ProbeRays* probeRays = nullptr;
-  if (!kMedium && probePackets_ && count >= kMinPacketSamples) {
-    thread_local std::unique_ptr<ProbeRays> buffer;
-    if (!buffer) buffer = std::make_unique<ProbeRays>();
-    probeRays = buffer.get();
-    for (std::vector<double>& v : probeRays->importance)
-      v.resize(kChunk * lights_.ImportanceSize());
-  }
+  // One group per thread, kept: a large one zeroed anew for every call costs a bake a visible
+  // share of its time.
+  thread_local std::unique_ptr<Group<kWidth>> buffer;
+  if (!buffer) buffer = std::make_unique<Group<kWidth>>();
+  Group<kWidth>& group = *buffer;
+  const size_t size = lights_.ImportanceSize();
+  group.probeImportance.resize(size);
+  for (std::vector<double>& v : group.importance) v.resize(kWidth * size);
 
-  const int64_t chunk = probeRays ? kChunk : count;
+  Probe probe;
+  probe.p = p;
+  probe.origin = Vec3f(p);
+  probe.total = lights_.Importance(p, nullptr, /*includeDelta=*/false, group.probeImportance);
+  probe.importance = group.probeImportance;
+  probe.lightSample = lightSampling_ && probe.total > 0;
+
   SampleCursor cursor(work);
-  for (int64_t c = 0; c < count; c += chunk) {
-    // int64_t: without packets the chunk is the whole call, up to 2^32 samples.
-    const int64_t n = std::min<int64_t>(chunk, count - c);
-    if (probeRays) {
-      TraceProbeRays(origin, p, importanceProbe, totalProbe, std::span<S>(samplers), cursor, int(n),
-                     probeRays, &local);
-      TraceWaves(p, importanceProbe, totalProbe, pdfProbe, std::span<S>(samplers), int(n),
-                 probeRays, &local);
+  for (int64_t c = 0; c < count; c += kWidth) {
+    if ((c & 255) == 0) {  // kWidth divides 256
+      if (shared) shared->Add(local);
+      local = {};
+      if (cancel && cancel->load(std::memory_order_relaxed)) return false;
     }
-    for (int64_t j = 0; j < n; ++j, cursor.Next()) {
-      if (((c + j) & 255) == 0) {
-        if (shared) shared->Add(local);
-        local = {};
-        if (cancel && cancel->load(std::memory_order_relaxed)) return false;
-      }
-      S& sampler = samplers[cursor.batch];
-      const std::span<double> sum = work[cursor.batch].sum;
-      Vec3d wi, radiance;
-      Vec2d uLight;
-      double uSelect = 0;
-      if (probeRays) {
-        // TraceProbeRays found this direction from the same numbers, and TraceWaves traced the
-        // path.
-        wi = probeRays->wi[j];
-        radiance = probeRays->path[j].radiance;
-      } else {
-        sampler.StartSample(uint64_t(cursor.index));
-        const Vec2d uDirection = sampler.Get2D();
-        uSelect = sampler.Get1D();
-        uLight = sampler.Get2D();
-        // The path first, the light sample after it: the path's work hides the memory latency
-        // of the light sample's tables (a large environment map), loaded from here on. The
-        // projections are still added light sample first, so the sum's bits do not change.
-        if (probeLightSample) lights_.Prefetch(uLight);
-        wi = SampleUniformSphere(uDirection);
-        std::copy(importanceProbe.begin(), importanceProbe.end(), scratchA.begin());
-        radiance = TracePath<kMedium>(origin, p, wi, pdfProbe, scratchA, totalProbe, scratchB,
-                                      sampler, &local);
-      }
-
-      if (probeLightSample) {
-        const auto add = [&](const LightSample& ls, const Vec3d& tr) {
-          if (MaxComponent(tr) <= 0) return;
-          const double wOverPdf = mis_ ? PowerHeuristicOverPdf(ls.pdf, pdfProbe) : 1 / ls.pdf;
-          Project(order, ls.wi, ls.radiance * tr * wOverPdf, sum);
-        };
-        if (probeRays) {
-          // Read in place: zeroing a local LightSample (rep stos) took 0.8% of a bake (perf).
-          const uint16_t slot = probeRays->shadowSlot[j];
-          if (Reaches(slot, probeRays->occluded)) add(probeRays->light[j], {1, 1, 1});
-        } else {
-          LightSample ls;
-          if (lights_.Sample(p, nullptr, importanceProbe, totalProbe, uSelect, uLight, &ls))
-            add(ls, Shadow<kMedium>(origin, ls, &local));
-        }
-      }
-      if (MaxComponent(radiance) > 0) Project(order, wi, radiance / pdfProbe, sum);
-      ++local.samples;
+    group.n = int(std::min<int64_t>(kWidth, count - c));
+    for (int j = 0; j < group.n; ++j, cursor.Next()) {
+      group.batch[j] = uint32_t(cursor.batch);
+      group.index[j] = cursor.index;
     }
+    StartAtProbe<kMedium>(probe, std::span<S>(samplers), &group, &local);
+    TraceWaves<kMedium>(probe, std::span<S>(samplers), &group, &local);
+    AddToSums<kMedium>(probe, group, work);
+    local.samples += group.n;
   }
   if (shared) shared->Add(local);
   return true;
 }
 
-template <typename S>
-void ProbeIntegrator::TraceProbeRays(const Vec3f& origin, const Vec3d& p,
-                                     std::span<const double> importance, double total,
-                                     std::span<S> samplers, SampleCursor cursor, int n,
-                                     ProbeRays* out, TraceCounters* counters) const {
-  // Packets want rays that are neighbours on the sphere; Sobol points in index order are spread
-  // over the whole sphere on purpose. So the rays are put in packets in the order of a counting
-  // sort by cell: the probe directions by their cell of 2^kCellBits x 2^kCellBits in the (z, phi)
-  // square they are drawn from (SampleUniformSphere), along a Morton curve (an aligned chunk of
-  // Sobol points is a (0, 2 kCellBits, 2)-net: one point in each); the shadow rays by light and
-  // by octahedral cell of their direction. The rays' order changes only which rays share a packet,
-  // never a result.
-  static_assert(kChunk == (1 << (2 * kCellBits)));
-  static_assert(kChunk <= kVisible, "slots never meet the markers");
-  // shadowCell is a sample's bucket, or kNoRay / kVisible when it has no shadow ray to trace.
-  const bool lightSample = lightSampling_ && total > 0;
-  // Zeroed only because GCC cannot see that the loop below sets the n entries SortSlots reads.
-  uint16_t hitCell[kChunk] = {}, shadowCell[kChunk] = {};
-  Vec3d shadowDir[kChunk];
-  double shadowTMax[kChunk];
-  const auto cellIndex = [](double x) {  // x in [0, 1]
-    return std::min(uint32_t(x * (1 << kCellBits)), (1u << kCellBits) - 1);
-  };
-  for (int j = 0; j < n; ++j, cursor.Next()) {
-    S& sampler = samplers[cursor.batch];
-    sampler.StartSample(uint64_t(cursor.index));
-    out->batch[j] = uint32_t(cursor.batch);
-    out->index[j] = cursor.index;
-    const Vec2d uDirection = sampler.Get2D();
-    const double uSelect = sampler.Get1D();
-    const Vec2d uLight = sampler.Get2D();
-    out->vertex[j] = DrawVertexNumbers(sampler);
-    out->wi[j] = SampleUniformSphere(uDirection);
-    hitCell[j] = uint16_t(MortonInterleave(cellIndex(uDirection.x), cellIndex(uDirection.y)));
-
-    shadowCell[j] = kNoRay;
-    if (!lightSample) continue;
-    LightSample& ls = out->light[j];
-    if (!lights_.Sample(p, nullptr, importance, total, uSelect, uLight, &ls)) continue;
-    ++counters->rays;  // counted as Unoccluded counts it, traced or not
-    if (!ShadowRay(origin, ls, &shadowDir[j], &shadowTMax[j])) {
-      shadowCell[j] = kVisible;
-      continue;
+template <bool kMedium, int kWidth, typename S>
+void ProbeIntegrator::StartAtProbe(const Probe& probe, std::span<S> samplers, Group<kWidth>* g,
+                                   TraceCounters* counters) const {
+  // Sort keys for the packets (groups of one have no use for them). Zeroed only because GCC
+  // cannot see that the loop below sets the n entries SortSlots reads.
+  uint16_t hitCell[kWidth] = {};
+  ShadowRays<kWidth>& shadow = g->probeShadow;
+  shadow.origin[0] = probe.origin;
+  shadow.count = g->n;
+  for (int j = 0; j < g->n; ++j) {
+    S& sampler = samplers[g->batch[j]];
+    sampler.StartSample(uint64_t(g->index[j]));
+    Vec2d uDirection, uLight;
+    double uSelect;
+    const auto drawAtProbe = [&](auto& numbers) {
+      uDirection = numbers.Get2D();
+      uSelect = numbers.Get1D();
+      uLight = numbers.Get2D();
+    };
+    if constexpr (kMedium) {
+      // The path goes on drawing from the sampler where the probe's numbers end.
+      drawAtProbe(sampler);
+    } else {
+      // With the first vertex's numbers: one Sobol chunk.
+      static_assert(kProbeSets + kVertexSets <= kSobolChunk);
+      DrawFromChunk(sampler, [&](auto& numbers) {
+        drawAtProbe(numbers);
+        g->vertex[j] = DrawVertexNumbers(numbers);
+      });
+      if (lightSampling_) lights_.Prefetch(g->vertex[j].light);
     }
-    // Octahedral map of the direction, then cells of 2^(kCellBits - 1) squared per light.
-    const Vec3d& d = shadowDir[j];
-    const double l1 = std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z);
-    const double inv = 1 / l1;
-    double ox = d.x * inv, oy = d.y * inv;
-    if (d.z < 0) {
-      const double fx = (1 - std::fabs(oy)) * (ox < 0 ? -1 : 1);
-      oy = (1 - std::fabs(ox)) * (oy < 0 ? -1 : 1);
-      ox = fx;
-    }
-    constexpr int kHalf = kCellBits - 1;
-    constexpr uint32_t kLightGroups = 4;  // 4 x 2^(2 kHalf) = kChunk buckets
-    const uint32_t cx = cellIndex(0.5 * (ox + 1)) >> 1, cy = cellIndex(0.5 * (oy + 1)) >> 1;
-    shadowCell[j] = uint16_t(((ls.light % kLightGroups) << (2 * kHalf)) | MortonInterleave(cx, cy));
-  }
-
-  SortSlots(hitCell, n, kChunk, out->hitSlot);
-  Vec3d sortedDir[kChunk];
-  for (int j = 0; j < n; ++j) sortedDir[out->hitSlot[j]] = out->wi[j];
-  constexpr int kWidth = TracerScene::kPacketWidth;
-  for (int k = 0; k < n; k += kWidth) {
-    const int m = std::min(kWidth, n - k);
-    tracer_.IntersectPacket({&origin, 1}, std::span<const Vec3d>(sortedDir + k, size_t(m)),
-                            out->hit + k, out->found + k);
-  }
-  counters->rays += n;
-  if (!lightSample) return;
-
-  const int rays = SortSlots(shadowCell, n, kChunk, out->shadowSlot);
-  double sortedTMax[kChunk];
-  for (int j = 0; j < n; ++j) {
-    const uint16_t k = out->shadowSlot[j];
-    if (k == kNoRay || k == kVisible) continue;
-    sortedDir[k] = shadowDir[j];
-    sortedTMax[k] = shadowTMax[j];
-  }
-  for (int k = 0; k < rays; k += kWidth) {
-    const int m = std::min(kWidth, rays - k);
-    tracer_.OccludedPacket({&origin, 1}, std::span<const Vec3d>(sortedDir + k, size_t(m)),
-                           sortedTMax + k, out->occluded + k);
-  }
-}
-
-template <typename S>
-void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importance, double total,
-                                 double pdfProbe, std::span<S> samplers, int n, ProbeRays* out,
-                                 TraceCounters* counters) const {
-  const size_t size = lights_.ImportanceSize();
-  // The wave's paths by slot of the rays that find their next vertex: the first wave in the probe
-  // rays' order (neighbouring slots hold neighbouring directions, whose hits are neighbours too,
-  // and so are the rays from them), each later one in the order of the one before.
-  uint16_t active[kChunk], next[kChunk];
-  for (int j = 0; j < n; ++j) {
-    active[out->hitSlot[j]] = uint16_t(j);
-    PathState& s = out->path[j];
+    g->wi[j] = SampleUniformSphere(uDirection);
+    if constexpr (kWidth > 1) hitCell[j] = DirectionCell<kCellBits>(uDirection);
+    PathState& s = g->path[j];
     s.radiance = {};
     s.beta = {1, 1, 1};
-    s.wi = out->wi[j];
-    s.pdfDir = pdfProbe;
-    s.pPrev = p;
+    s.wi = g->wi[j];
+    s.pdfDir = probe.pdf;
+    if constexpr (kMedium) s.origin = probe.origin;
+    s.pPrev = probe.p;
     s.hasNormal = false;
-    s.total = total;
+    s.total = probe.total;
+
+    shadow.key[j] = kNoRay;
+    if (!probe.lightSample) continue;
+    LightSample& ls = g->light[j];
+    if (!lights_.Sample(probe.p, nullptr, probe.importance, probe.total, uSelect, uLight, &ls))
+      continue;
+    ++counters->rays;  // counted whether traced or not
+    shadow.key[j] = ShadowRay(probe.origin, ls, &shadow.dir[j], &shadow.tMax[j])
+                        ? (kWidth > 1 ? ShadowCell<kCellBits>(shadow.dir[j], ls.light) : 0)
+                        : kVisible;
   }
-  Vec3f shadowOrigin[kChunk], nextOrigin[kChunk], sortedOrigin[kChunk];
-  Vec3d shadowDir[kChunk], nextDir[kChunk], sortedDir[kChunk];
-  double shadowTMax[kChunk], sortedTMax[kChunk];
-  uint16_t shadowGroup[kChunk], shadowSlot[kChunk];
-  bool sortedOccluded[kChunk];
-  // By shadow ray: its path and its light sample's contribution, neeBase neeScale unless occluded.
-  uint16_t shadowPath[kChunk];
-  Vec3d neeBase[kChunk];
-  double neeScale[kChunk];
-  const bool* found = out->found;
-  const SurfaceHit* hits = out->hit;
-  constexpr int kWidth = TracerScene::kPacketWidth;
-  constexpr int kShadowGroups = 4;
-  // One for all vertices: ShadeSurface writes every field that is read after it, and zeroing a
-  // fresh one (some 200 bytes) for every vertex took 1.5% of the bake's own instructions
-  // (callgrind).
-  SurfaceVertex v;
-  for (int bounce = 1, count = n; count > 0; ++bounce) {
-    double* importanceHere = out->importance[bounce & 1].data();
-    const double* importanceBefore = out->importance[(bounce - 1) & 1].data();
-    int shadowRays = 0, nextRays = 0;
+
+  // The first rays, by slot: neighbouring slots hold neighbouring directions, whose hits are
+  // neighbours too, and so are the rays from them.
+  uint16_t slot[kWidth];
+  if constexpr (kWidth > 1) {
+    SortSlots(hitCell, g->n, kChunk, slot);
+  } else {
+    slot[0] = 0;
+  }
+  for (int j = 0; j < g->n; ++j) {
+    g->nextDir[slot[j]] = g->wi[j];
+    g->active[slot[j]] = uint16_t(j);
+  }
+  IntersectRays<kWidth>(tracer_, {&probe.origin, 1}, g->nextDir, g->n, g->hit, g->found);
+  counters->rays += g->n;
+  if (probe.lightSample) TraceShadowRays(tracer_, kChunk, /*sharedOrigin=*/true, &shadow);
+}
+
+template <bool kMedium, int kWidth, typename S>
+void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Group<kWidth>* g,
+                                 TraceCounters* counters) const {
+  const size_t size = lights_.ImportanceSize();
+  constexpr int kShadowGroups = 4;  // shadow rays go in packets by light % kShadowGroups
+  uint16_t* next = g->next;
+  Vec3f* nextOrigin = g->nextOrigin;
+  Vec3d* nextDir = g->nextDir;
+  ShadowRays<kWidth>& shadow = g->shadow;
+  // One for all vertices: ShadeSurface and ShadeMedium write every field that is read after
+  // them, and a fresh one would be zeroed for every vertex.
+  Vertex v;
+  for (int bounce = 1, count = g->n; count > 0; ++bounce) {
+    double* importanceHere = g->importance[bounce & 1].data();
+    const double* importanceBefore = g->importance[(bounce - 1) & 1].data();
+    int nextRays = 0;
+    shadow.count = 0;
     for (int k = 0; k < count; ++k) {
-      const int j = active[k];
-      PathState& s = out->path[j];
-      const SurfaceHit& hit = hits[k];
-      const std::span<const double> before =
-          bounce == 1 ? importance : std::span<const double>(importanceBefore + j * size, size);
-      const Vec3d* albedo = Arrive(found[k], hit, bounce, s.pPrev, s.hasNormal ? &s.nPrev : nullptr,
-                                   before, s.total, s.wi, s.pdfDir, s.beta, &s.radiance);
-      if (!albedo || MaxComponent(*albedo) <= 0) continue;
-      ShadeSurface(hit, s.wi, *albedo, out->vertex[j], bounce,
-                   std::span<double>(importanceHere + j * size, size), &s.beta, &v);
-      if (v.lightSampled) {
-        ++counters->rays;  // counted as Unoccluded counts it, traced or not
-        if (ShadowRay(v.spawn, v.ls, &shadowDir[shadowRays], &shadowTMax[shadowRays])) {
-          shadowOrigin[shadowRays] = v.spawn;
-          shadowGroup[shadowRays] = uint16_t(v.ls.light % kShadowGroups);
-          shadowPath[shadowRays] = uint16_t(j);
-          neeBase[shadowRays] = v.neeBase;
-          neeScale[shadowRays++] = v.neeScale;
-        } else {
-          // Added after the vertex's emission and before the next vertex's, as TracePath adds it.
-          const Vec3d tr{1, 1, 1};
-          s.radiance += v.neeBase * tr * v.neeScale;
+      const int j = g->active[k];
+      PathState& s = g->path[j];
+      const SurfaceHit& hit = g->hit[k];
+      // The vertex's light importance, written by its shading.
+      const auto here = [&] { return std::span<double>(importanceHere + j * size, size); };
+      bool scattered = false;
+      VertexNumbers drawn;  // with a medium: the vertex's numbers, drawn once it is found
+      const VertexNumbers* u = kMedium ? &drawn : &g->vertex[j];
+      if constexpr (kMedium) {
+        // The segment may end in the medium before the surface it found.
+        S& sampler = samplers[g->batch[j]];  // the path's alone (a group of one)
+        const double uChannel = sampler.Get1D();
+        const double uDistance = sampler.Get1D();
+        const MediumSample ms =
+            medium_->Sample(Vec3d(s.origin), s.wi, g->found[k] ? hit.t : kInf, uChannel, uDistance);
+        s.beta *= ms.weight;
+        if (ms.scattered) {
+          const Vec3d x = Vec3d(s.origin) + s.wi * ms.t;
+          drawn = DrawVertexNumbers(sampler);
+          if (bounce > settings_.maxDepth || MaxComponent(s.beta) <= 0) continue;
+          ShadeMedium(x, s.wi, *u, bounce, here(), &s.beta, &v);
+          scattered = true;
+        } else if (MaxComponent(s.beta) <= 0) {
+          continue;
         }
+      }
+      if (!scattered) {
+        const std::span<const double> before =
+            bounce == 1 ? probe.importance
+                        : std::span<const double>(importanceBefore + j * size, size);
+        const Vec3d* albedo =
+            Arrive(g->found[k], hit, bounce, s.pPrev, s.hasNormal ? &s.nPrev : nullptr, before,
+                   s.total, s.wi, s.pdfDir, s.beta, &s.radiance);
+        if (!albedo) continue;
+        if constexpr (kMedium) drawn = DrawVertexNumbers(samplers[g->batch[j]]);
+        if (MaxComponent(*albedo) <= 0) continue;
+        ShadeSurface(hit, s.wi, *albedo, *u, bounce, here(), &s.beta, &v);
+      }
+
+      if (v.lightSampled) {
+        const int r = shadow.count++;
+        ++counters->rays;  // counted whether traced or not
+        shadow.origin[r] = v.spawn;
+        shadow.key[r] = ShadowRay(v.spawn, v.ls, &shadow.dir[r], &shadow.tMax[r])
+                            ? uint16_t(v.ls.light % kShadowGroups)
+                            : kVisible;
+        g->shadowPath[r] = uint16_t(j);
+        g->neeBase[r] = v.neeBase;
+        g->neeScale[r] = v.neeScale;
       }
       if (!v.continues) continue;
       s.wi = v.wi;
       s.pdfDir = v.pdfDir;
-      s.pPrev = hit.p;
+      if constexpr (kMedium) s.origin = v.spawn;
+      s.pPrev = scattered ? v.x : hit.p;
       s.nPrev = v.n;
-      s.hasNormal = true;
+      s.hasNormal = !scattered;
       s.total = v.total;
-      // The next vertex's numbers, as TracePath draws them: vertex d's sets start at kProbeSets +
-      // (d - 1) kVertexSets, and a sampler restarted at an even vertex's computes that vertex's
-      // sets and the next one's together (kSobolChunk = 2 kVertexSets), so they are drawn
-      // together. Its light tables load while the rays are traced.
-      static_assert(kSobolChunk == 2 * kVertexSets);
-      if ((bounce + 1) % 2 == 0) {
-        S& sampler = samplers[out->batch[j]];
-        sampler.StartSample(uint64_t(out->index[j]), kProbeSets + uint64_t(bounce) * kVertexSets);
-        DrawTwoVertices(sampler, &out->vertex[j], &out->after[j]);
-      } else {
-        out->vertex[j] = out->after[j];
+      if constexpr (!kMedium) {
+        // The next vertex's numbers: vertex d's sets start at kProbeSets + (d - 1) kVertexSets,
+        // and a sampler restarted at an even vertex's computes that vertex's sets and the next
+        // one's together (kSobolChunk = 2 kVertexSets), so they are drawn together. Restarted,
+        // as the group's paths share their batch's sampler. Its light tables load while the
+        // rays are traced.
+        static_assert(kSobolChunk == 2 * kVertexSets);
+        if ((bounce + 1) % 2 == 0) {
+          S& sampler = samplers[g->batch[j]];
+          sampler.StartSample(uint64_t(g->index[j]), kProbeSets + uint64_t(bounce) * kVertexSets);
+          DrawTwoVertices(sampler, &g->vertex[j], &g->after[j]);
+        } else {
+          g->vertex[j] = g->after[j];
+        }
+        if (lightSampling_) lights_.Prefetch(g->vertex[j].light);
       }
-      if (lightSampling_) lights_.Prefetch(out->vertex[j].light);
       nextOrigin[nextRays] = v.spawn;
       nextDir[nextRays] = v.wi;
       next[nextRays++] = uint16_t(j);
     }
-    // Packets of shadow rays by light (a stable counting sort of the wave's order): rays from
-    // neighbouring points to one light share most of their traversal.
-    SortSlots(shadowGroup, shadowRays, kShadowGroups, shadowSlot);
-    for (int r = 0; r < shadowRays; ++r) {
-      const int k = shadowSlot[r];
-      sortedOrigin[k] = shadowOrigin[r];
-      sortedDir[k] = shadowDir[r];
-      sortedTMax[k] = shadowTMax[r];
+
+    // Each light sample's contribution is added after its vertex's emission and before the next
+    // vertex's, as the path meets them.
+    TraceShadowRays(tracer_, kShadowGroups, /*sharedOrigin=*/false, &shadow);
+    for (int r = 0; r < shadow.count; ++r) {
+      const Vec3d tr =
+          Arrived<kMedium>(!shadow.Reaches(r), shadow.origin[r], shadow.dir[r], shadow.tMax[r]);
+      if (MaxComponent(tr) > 0)
+        g->path[g->shadowPath[r]].radiance += g->neeBase[r] * tr * g->neeScale[r];
     }
-    for (int k = 0; k < shadowRays; k += kWidth) {
-      const size_t m = size_t(std::min(kWidth, shadowRays - k));
-      tracer_.OccludedPacket(std::span<const Vec3f>(sortedOrigin + k, m),
-                             std::span<const Vec3d>(sortedDir + k, m), sortedTMax + k,
-                             sortedOccluded + k);
-    }
-    for (int r = 0; r < shadowRays; ++r) {
-      if (sortedOccluded[shadowSlot[r]]) continue;
-      const Vec3d tr{1, 1, 1};  // as TracePath adds it
-      out->path[shadowPath[r]].radiance += neeBase[r] * tr * neeScale[r];
-    }
+    // The next wave, in the order of this one: neighbouring rays start from neighbouring points.
     // The hits just read are overwritten only now.
-    for (int k = 0; k < nextRays; k += kWidth) {
-      const size_t m = size_t(std::min(kWidth, nextRays - k));
-      tracer_.IntersectPacket(std::span<const Vec3f>(nextOrigin + k, m),
-                              std::span<const Vec3d>(nextDir + k, m), out->nextHit + k,
-                              out->nextFound + k);
-    }
+    IntersectRays<kWidth>(tracer_, std::span<const Vec3f>(nextOrigin, size_t(nextRays)), nextDir,
+                          nextRays, g->hit, g->found);
     counters->rays += nextRays;
-    std::copy(next, next + nextRays, active);
+    std::copy(next, next + nextRays, g->active);
     count = nextRays;
-    found = out->nextFound;
-    hits = out->nextHit;
+  }
+}
+
+template <bool kMedium, int kWidth>
+void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
+                                std::span<const BatchWork> work) const {
+  const int order = settings_.shOrder;
+  const ShadowRays<kWidth>& shadow = g.probeShadow;
+  for (int j = 0; j < g.n; ++j) {
+    const std::span<double> sum = work[g.batch[j]].sum;
+    // The light sample first, then the path.
+    if (probe.lightSample && shadow.slot[j] != kNoRay) {
+      const LightSample& ls = g.light[j];  // read in place: a copy would be zeroed first
+      const Vec3d tr =
+          Arrived<kMedium>(!shadow.Reaches(j), probe.origin, shadow.dir[j], shadow.tMax[j]);
+      if (MaxComponent(tr) > 0) {
+        const double wOverPdf = mis_ ? PowerHeuristicOverPdf(ls.pdf, probe.pdf) : 1 / ls.pdf;
+        Project(order, ls.wi, ls.radiance * tr * wOverPdf, sum);
+      }
+    }
+    const Vec3d& radiance = g.path[j].radiance;
+    if (MaxComponent(radiance) > 0) Project(order, g.wi[j], radiance / probe.pdf, sum);
   }
 }
 
@@ -527,7 +702,7 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
 
 [[gnu::always_inline]] inline void ProbeIntegrator::ShadeSurface(
     const SurfaceHit& hit, const Vec3d& wi, const Vec3d& albedo, const VertexNumbers& u, int bounce,
-    std::span<double> importance, Vec3d* beta, SurfaceVertex* v) const {
+    std::span<double> importance, Vec3d* beta, Vertex* v) const {
   // Shade on the side the ray arrived from; both sides of a mesh reflect.
   v->n = Dot(wi, hit.ng) < 0 ? hit.ng : -hit.ng;
   v->spawn = OffsetRayOrigin(hit.p, v->n, hit.vertexScale);
@@ -569,99 +744,38 @@ void ProbeIntegrator::TraceWaves(const Vec3d& p, std::span<const double> importa
   v->continues = true;
 }
 
-template <bool kMedium, typename S>
-Vec3d ProbeIntegrator::TracePath(const Vec3f& originProbe, const Vec3d& p, const Vec3d& wiProbe,
-                                 double pdfProbe, std::span<double> importancePrev,
-                                 double totalPrev, std::span<double> scratch, S& sampler,
-                                 TraceCounters* counters) const {
-  Vec3d radiance, beta{1, 1, 1}, wi = wiProbe;
-  double pdfDir = pdfProbe;
-  Vec3f origin = originProbe;
-  Vec3d pPrev = p;
-  Vec3d nPrevStorage;
-  const Vec3d* nPrev = nullptr;  // the probe and medium vertices have no surface
-  for (int bounce = 1;; ++bounce) {
-    // Without a medium the vertex's random numbers are drawn before its ray is traced (a path
-    // that ends there leaves them unused, and the next sample restarts the sampler), so that the
-    // light sample's memory loads while Embree traces.
-    VertexNumbers u;
-    if constexpr (!kMedium) {
-      u = DrawVertexNumbers(sampler);
-      if (lightSampling_) lights_.Prefetch(u.light);
-    }
-    SurfaceHit hit;
-    ++counters->rays;
-    const bool found = tracer_.Intersect(origin, wi, kInf, &hit);
-
-    if constexpr (kMedium) {
-      const double uChannel = sampler.Get1D();
-      const double uDistance = sampler.Get1D();
-      const MediumSample ms =
-          medium_->Sample(Vec3d(origin), wi, found ? hit.t : kInf, uChannel, uDistance);
-      beta *= ms.weight;
-      if (ms.scattered) {
-        const Vec3d x = Vec3d(origin) + wi * ms.t;
-        u = DrawVertexNumbers(sampler);
-        if (bounce > settings_.maxDepth || MaxComponent(beta) <= 0) break;
-        const Vec3f xf(x);
-        const double g = medium_->g();
-        const double total = lights_.Importance(x, nullptr, /*includeDelta=*/true, scratch);
-        if (lightSampling_ && total > 0) {
-          LightSample ls;
-          if (lights_.Sample(x, nullptr, scratch, total, u.select, u.light, &ls)) {
-            // Light propagating along -ls.wi leaves along -wi: cos theta = Dot(ls.wi, wi).
-            const double phase = HenyeyGreensteinPdf(Dot(ls.wi, wi), g);
-            const Vec3d tr = Shadow<true>(xf, ls, counters);
-            if (MaxComponent(tr) > 0) {
-              const double w = (mis_ && !ls.delta) ? PowerHeuristic(ls.pdf, phase) : 1.0;
-              radiance += beta * ls.radiance * tr * (phase * w / ls.pdf);
-            }
-          }
-        }
-        // Sample where the light came from: its propagation direction dIn is HG-distributed about
-        // the outgoing one, -wi (the phase function is symmetric in the two).
-        const Vec3d local = SampleHenyeyGreenstein(u.next, g);
-        const Vec3d dIn = Framed::FromZ(-wi).FromLocal(local);
-        pdfDir = HenyeyGreensteinPdf(local.z, g);  // phase / pdf = 1: beta is unchanged
-        if (settings_.russianRoulette && bounce >= settings_.rrMinDepth) {
-          const double survive = std::min(1.0, MaxComponent(beta));
-          if (u.roulette >= survive) break;
-          beta = beta / survive;
-        }
-        wi = Normalize(-dIn);
-        origin = xf;
-        pPrev = x;
-        nPrev = nullptr;
-        std::swap(importancePrev, scratch);
-        totalPrev = total;
-        continue;
-      }
-      if (MaxComponent(beta) <= 0) break;
-    }
-
-    const Vec3d* albedo = Arrive(found, hit, bounce, pPrev, nPrev, importancePrev, totalPrev, wi,
-                                 pdfDir, beta, &radiance);
-    if (!albedo) break;
-    if constexpr (kMedium) u = DrawVertexNumbers(sampler);
-    if (MaxComponent(*albedo) <= 0) break;
-
-    SurfaceVertex v;
-    ShadeSurface(hit, wi, *albedo, u, bounce, scratch, &beta, &v);
-    if (v.lightSampled) {
-      const Vec3d tr = Shadow<kMedium>(v.spawn, v.ls, counters);
-      if (MaxComponent(tr) > 0) radiance += v.neeBase * tr * v.neeScale;
-    }
-    if (!v.continues) break;
-    wi = v.wi;
-    pdfDir = v.pdfDir;
-    origin = v.spawn;
-    pPrev = hit.p;
-    nPrevStorage = v.n;
-    nPrev = &nPrevStorage;
-    std::swap(importancePrev, scratch);
-    totalPrev = v.total;
+[[gnu::always_inline]] inline void ProbeIntegrator::ShadeMedium(const Vec3d& x, const Vec3d& wi,
+                                                                const VertexNumbers& u, int bounce,
+                                                                std::span<double> importance,
+                                                                Vec3d* beta, Vertex* v) const {
+  v->x = x;
+  v->spawn = Vec3f(x);
+  const double g = medium_->g();
+  v->total = lights_.Importance(x, nullptr, /*includeDelta=*/true, importance);
+  v->lightSampled = false;
+  if (lightSampling_ && v->total > 0 &&
+      lights_.Sample(x, nullptr, importance, v->total, u.select, u.light, &v->ls)) {
+    // Light propagating along -ls.wi leaves along -wi: cos theta = Dot(ls.wi, wi).
+    const double phase = HenyeyGreensteinPdf(Dot(v->ls.wi, wi), g);
+    const double w = (mis_ && !v->ls.delta) ? PowerHeuristic(v->ls.pdf, phase) : 1.0;
+    v->lightSampled = true;
+    v->neeBase = *beta * v->ls.radiance;
+    v->neeScale = phase * w / v->ls.pdf;
   }
-  return radiance;
+
+  v->continues = false;
+  // Sample where the light came from: its propagation direction dIn is HG-distributed about the
+  // outgoing one, -wi (the phase function is symmetric in the two).
+  const Vec3d local = SampleHenyeyGreenstein(u.next, g);
+  const Vec3d dIn = Framed::FromZ(-wi).FromLocal(local);
+  v->pdfDir = HenyeyGreensteinPdf(local.z, g);  // phase / pdf = 1: beta is unchanged
+  if (settings_.russianRoulette && bounce >= settings_.rrMinDepth) {
+    const double survive = std::min(1.0, MaxComponent(*beta));
+    if (u.roulette >= survive) return;
+    *beta = *beta / survive;
+  }
+  v->wi = Normalize(-dIn);
+  v->continues = true;
 }
 
 }  // namespace probebake

@@ -1,9 +1,8 @@
 // A probe's identity in a bake: the point it is traced from and the key of its random streams, as
-// a function of its world position and the scene alone. SPEC 3 asks for the same bits "whatever
-// the sharding of the grid across machines": a grid split into sub-grids on the same lattice must
-// bake every probe exactly as the whole grid does, so nothing about a probe may depend on its
-// index in the grid or on the grid's extent (the tracer's local origin depends on the scene only,
-// tracer_scene.h).
+// a function of its world position and the scene alone. A grid split into sub-grids on the same
+// lattice, baked on several machines, must merge to the same bits as the whole grid
+// (docs/job-format.md, `grid`), so nothing about a probe may depend on its index in the grid or on
+// the grid's extent (the tracer's local origin depends on the scene only, tracer_scene.h).
 //
 // A sub-grid computes its probes' positions from its own min (min + spacing * i), which can differ
 // from the whole grid's in the last bits (0.3 + 0.8 * 2 != 1.9 in double). So each coordinate of
@@ -11,7 +10,7 @@
 // of the power-of-two quantum q = 2^(max(ilogb(x), ilogb(extent)) - 30), extent being the largest
 // local coordinate of the scene's finite bounds (1 when there are none):
 //   - a probe moves by at most q / 2, at most 2^-31 of max(|x|, extent): 100 times finer than the
-//     float resolution the tracer works at (README, limits), so no bake can tell;
+//     float resolution the tracer works at (docs/job-format.md, precision), so no bake can tell;
 //   - two world positions d ulps apart snap to the same point unless they straddle a
 //     half-quantum, with probability about d ulp(world) / q: 2^-22 d for a scene around the origin,
 //     more for a small scene far from it (2^-15 d at 1e5 units with a 1e3 extent). Near a power of

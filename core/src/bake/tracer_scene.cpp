@@ -97,9 +97,9 @@ size_t OriginStep(std::span<const Vec3f> origins, std::span<const Vec3d> dirs) {
 
 // Rays from one origin (the caller sorts them by direction) share most of their BVH traversal:
 // Embree's coherent mode. Rays from several origins (neighbouring surface points, toward one
-// light or on in cosine-distributed directions) are not that alike: flagged coherent, the first
-// vertices' packets made the demo room's bake 3% slower than the same code tracing single rays (4
-// paired runs), flagged incoherent 4% faster (10 paired runs).
+// light or on in cosine-distributed directions) are not that alike: flagged coherent, their
+// packets traced slower than single rays, flagged incoherent faster
+// (docs/performance-history.md).
 RTCIntersectContextFlags PacketFlags(size_t originStep) {
   return originStep == 0 ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT
                          : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;

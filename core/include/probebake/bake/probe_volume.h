@@ -1,6 +1,6 @@
 // The result of a bake: per-probe SH radiance (and optionally irradiance), validity, error
-// estimate and sample count over a ProbeGrid (SPEC 3, 5). Written to and read from .vdb files by
-// probebake/volume/vdb_io.h.
+// estimate and sample count over a ProbeGrid (docs/volume-format.md). Written to and read from .vdb
+// files by probebake/volume/vdb_io.h.
 #pragma once
 
 #include <cstdint>
@@ -51,7 +51,7 @@ struct ProbeVolume {
 // windowed, max t=<t>)".
 std::string AutoWindowSummary(int64_t windowed, int64_t probes, double maxT);
 
-// Metadata recorded with a volume (SPEC 5) besides what ProbeVolume holds.
+// Metadata recorded with a volume (docs/volume-format.md) besides what ProbeVolume holds.
 struct VolumeMetadata {
   int64_t samplesPerProbe = 0;
   int maxDepth = 0;
