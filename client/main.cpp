@@ -37,10 +37,9 @@
 #include "probebake/volume/vdb_io.h"
 #include "probebake/volume/volume_inspect.h"
 #include "probebake/volume/volume_merge.h"
-#include "server/asset_check.h"
-#include "server/bake_backend.h"
-#include "server/file_util.h"
-#include "server/job_state.h"
+#include "runtime/asset_check.h"
+#include "runtime/files.h"
+#include "runtime/job_state.h"
 
 namespace probebake::client {
 namespace {
@@ -104,7 +103,7 @@ absl::StatusOr<std::unique_ptr<Client>> ConnectFrom(const ClientFlags& flags) {
         flags.server.empty() ? "$PROBEBAKE_SERVER" : "--server", ": ", address.message()));
   }
   if (!flags.tokenFile.empty()) {
-    absl::StatusOr<std::string> token = server::ReadWholeFile(flags.tokenFile);
+    absl::StatusOr<std::string> token = runtime::ReadWholeFile(flags.tokenFile);
     if (!token.ok())
       return absl::InvalidArgumentError(
           absl::StrCat("--token-file: ", std::string(token.status().message())));
@@ -140,7 +139,7 @@ int CheckOutput(const std::string& out) {
   return kExitOk;
 }
 
-// A job's mesh and map files are imported in a child first (server/asset_check.h): a file that
+// A job's mesh and map files are imported in a child first (runtime/asset_check.h): a file that
 // crashes or hangs the importer is reported with its field instead of taking the CLI with it.
 constexpr std::chrono::seconds kAssetCheckTimeout{600};
 
@@ -159,7 +158,7 @@ int RunBake(const std::string& jobPath, const std::string& out, int threads, boo
   if (absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
       spec.ok() && !ListFileReferences(*spec).empty()) {
     const absl::Status checked =
-        server::RunAssetCheck({SelfExecutable(), "check-assets", jobPath}, kAssetCheckTimeout);
+        runtime::RunAssetCheck({SelfExecutable(), "check-assets", jobPath}, kAssetCheckTimeout);
     if (!checked.ok()) return Fail(checked, jobPath);
   }
   absl::StatusOr<BakeJob> job = LoadBakeJob(jobPath, JobLimits());
@@ -263,7 +262,7 @@ int WatchAndReport(Client& client, const std::string& name, ProgressView& view,
 
 int Fetch(Client& client, const v1::BakeJob& job, const std::string& out, ProgressView& view) {
   if (job.state() != v1::BakeJob::SUCCEEDED) {
-    if (server::IsFinal(job.state()))
+    if (runtime::IsFinal(job.state()))
       return Fail(kExitJobFailed, absl::StrCat(JobSummary(job), "; nothing to fetch"));
     return Fail(kExitUsage,
                 absl::StrCat(job.name(), " has not finished (",
@@ -298,7 +297,7 @@ absl::Status FitsInOneMessage(const v1::JobSpec& spec, int64_t maxMessageBytes) 
   // limit for the rest of a job's record.
   constexpr int64_t kOverhead = 4096;
   const int64_t bytes = int64_t(spec.ByteSizeLong()) + kOverhead;
-  maxMessageBytes -= server::kJobRecordReserve;
+  maxMessageBytes -= runtime::kJobRecordReserve;
   if (maxMessageBytes <= 0 || bytes <= maxMessageBytes) return absl::OkStatus();
   int largest = -1;
   for (int i = 0; i < spec.scene().meshes_size(); ++i) {
@@ -315,7 +314,7 @@ absl::Status FitsInOneMessage(const v1::JobSpec& spec, int64_t maxMessageBytes) 
   return absl::InvalidArgumentError(absl::StrCat(
       "the job is about ", bytes,
       " bytes as a request, over the server's message limit for a job of ", maxMessageBytes,
-      " bytes (max_message_bytes less ", server::kJobRecordReserve, " for its record)", hint));
+      " bytes (max_message_bytes less ", runtime::kJobRecordReserve, " for its record)", hint));
 }
 
 int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
@@ -354,7 +353,7 @@ int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
   std::fflush(stdout);
   if (!wait && out.empty()) return kExitOk;
   v1::BakeJob final = *job;
-  if (!server::IsFinal(job->state())) {
+  if (!runtime::IsFinal(job->state())) {
     int code = WatchAndReport(**client, job->name(), view, &final);
     if (code != kExitOk) return code;
   }
@@ -398,7 +397,7 @@ int RunCancel(const ClientFlags& flags, const std::string& name) {
   if (!client.ok()) return Fail(client.status());
   absl::StatusOr<v1::BakeJob> job = (*client)->CancelJob(name);
   if (!job.ok()) return Fail(job.status());
-  if (!server::IsFinal(job->state())) {
+  if (!runtime::IsFinal(job->state())) {
     // Cancellation reaches the baker within a fraction of a second: wait for the final state.
     job = (*client)->Watch(
         name, [](const v1::BakeJob&) {}, std::chrono::seconds(10));
@@ -451,7 +450,7 @@ int Main(int argc, char** argv) {
   bake->add_option("--threads", threads, "Worker threads (0: all)")->check(CLI::NonNegativeNumber);
   bake->add_flag("--json", json, "Progress and result as JSON lines on stdout");
 
-  // The child of the local bake's asset check (server/asset_check.h); not for people.
+  // The child of the local bake's asset check (runtime/asset_check.h); not for people.
   CLI::App* checkAssets = app.add_subcommand("check-assets");
   checkAssets->group("");
   checkAssets->add_option("job", jobPath)->required();
@@ -506,7 +505,7 @@ int Main(int argc, char** argv) {
 
   if (*checkAssets) {
     SetLogLevel(spdlog::level::warn);  // the bake that spawned it logs what matters
-    return server::RunLocalAssetCheckChild(jobPath, JobLimits());
+    return runtime::RunLocalAssetCheckChild(jobPath, JobLimits());
   }
   if (*bake) return RunBake(jobPath, out, threads, json);
   if (*inspect) return RunInspect(path, json, slice, out);

@@ -28,8 +28,8 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "probebake/job/digest.h"
 #include "probebake/v1/job.pb.h"
-#include "server/file_util.h"
 
 namespace probebake::server {
 
@@ -73,7 +73,7 @@ class BlobUpload {
   int fd_ = -1;
   int64_t size_ = 0;
   bool done_ = false;
-  std::unique_ptr<Sha256Stream> hash_;
+  Sha256 hash_;
 };
 
 // A stored blob opened for reading; the file's size equals the digest's.

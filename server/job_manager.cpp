@@ -260,12 +260,12 @@ absl::StatusOr<v1::BakeJob> JobManager::CreateJob(const v1::CreateBakeJobRequest
   }
   if (!request.has_job()) return FieldError("job", "required");
   if (const int64_t bytes = int64_t(request.job().ByteSizeLong()),
-      limit = config_.maxMessageBytes - kJobRecordReserve;
+      limit = config_.maxMessageBytes - runtime::kJobRecordReserve;
       bytes > limit)
     return FieldError(
         "job",
         absl::StrCat(bytes, " bytes, over the ", limit, " a job may take (max_message_bytes less ",
-                     kJobRecordReserve, " for its record); put large meshes in files"));
+                     runtime::kJobRecordReserve, " for its record); put large meshes in files"));
   PB_RETURN_IF_ERROR(ValidateForServer(request.job()));
   // Reads every asset, so a mesh or map that does not parse is refused now, not mid-bake; the
   // built job also gives the digest that keys the result cache.
@@ -398,7 +398,7 @@ absl::StatusOr<v1::BakeJob> JobManager::CancelJob(const std::string& name) {
   std::lock_guard lock(mutex_);
   auto running = running_.find(name);
   // A job whose end is stored (and announced) is finished, though its worker is still leaving.
-  if (running != running_.end() && !IsFinal(running->second->record.state())) {
+  if (running != running_.end() && !runtime::IsFinal(running->second->record.state())) {
     RunningJob& job = *running->second;
     if (!job.record.cancel_requested()) {
       // Stored first: a cancel the store refuses (a full disk) is an error, and neither stops
@@ -420,7 +420,7 @@ absl::StatusOr<v1::BakeJob> JobManager::CancelJob(const std::string& name) {
   PB_ASSIGN_OR_RETURN(std::optional<StoredJob> stored, store_->Get(name));
   if (!stored) return absl::NotFoundError(absl::StrCat(name, ": no such job"));
   v1::BakeJob record = std::move(stored->record);
-  if (IsFinal(record.state())) return record;
+  if (runtime::IsFinal(record.state())) return record;
   // Queued (running jobs are all in running_).
   record.set_state(v1::BakeJob::CANCELLED);
   record.set_cancel_requested(true);
@@ -442,7 +442,7 @@ absl::Status JobManager::DeleteJob(const std::string& name) {
   std::lock_guard lock(mutex_);
   // A job whose end is stored (and announced) is finished, though its worker is still leaving.
   if (auto running = running_.find(name);
-      running != running_.end() && !IsFinal(running->second->record.state()))
+      running != running_.end() && !runtime::IsFinal(running->second->record.state()))
     return absl::FailedPreconditionError(
         absl::StrCat(name, ": the job is running; cancel it first"));
   PB_ASSIGN_OR_RETURN(bool existed, store_->Delete(name));
@@ -461,10 +461,10 @@ absl::Status JobManager::Subscribe(const std::string& name,
   std::lock_guard lock(mutex_);
   PB_ASSIGN_OR_RETURN(std::optional<v1::BakeJob> job, LoadLocked(name, false));
   if (!job) return absl::NotFoundError(absl::StrCat(name, ": no such job; resubmit"));
-  if (!IsFinal(job->state()) && stopping_)
+  if (!runtime::IsFinal(job->state()) && stopping_)
     return absl::UnavailableError("the server is shutting down; watch again once it is back");
   subscriber->OnJobUpdate(*job);
-  if (IsFinal(job->state())) return absl::OkStatus();
+  if (runtime::IsFinal(job->state())) return absl::OkStatus();
   // Entries of this job's freed streams go now, so they never outnumber its live watchers.
   auto [begin, end] = subscribers_.equal_range(name);
   for (auto it = begin; it != end;) it = it->second.expired() ? subscribers_.erase(it) : ++it;
@@ -504,7 +504,7 @@ void JobManager::NotifyLocked(const v1::BakeJob& record) {
     subscriber->OnJobUpdate(record);
     ++it;
   }
-  if (IsFinal(record.state())) subscribers_.erase(record.name());
+  if (runtime::IsFinal(record.state())) subscribers_.erase(record.name());
 }
 
 void JobManager::EndSubscribersLocked(const std::string& name, const absl::Status& status) {
@@ -806,7 +806,7 @@ void JobManager::OnCheckpoint(RunningJob& job, const std::string& jobDigest,
 }
 
 void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
-  const bool final = IsFinal(outcome.state);
+  const bool final = runtime::IsFinal(outcome.state);
   v1::BakeJob record;
   {
     std::lock_guard lock(mutex_);

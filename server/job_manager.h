@@ -33,9 +33,9 @@
 #include "absl/status/statusor.h"
 #include "probebake/job/limits.h"
 #include "probebake/v1/service.pb.h"
+#include "runtime/job_state.h"
 #include "server/bake_backend.h"
 #include "server/checkpoint.h"
-#include "server/job_state.h"
 #include "server/path_redactor.h"
 
 namespace probebake::server {

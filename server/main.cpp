@@ -19,9 +19,9 @@
 #include <CLI/CLI.hpp>
 
 #include "probebake/base/log.h"
+#include "runtime/files.h"
 #include "server/asset_check.h"
 #include "server/blob_store.h"
-#include "server/file_util.h"
 #include "server/server.h"
 
 namespace {
@@ -180,7 +180,8 @@ int main(int argc, char** argv) {
     return absl::IsInvalidArgument(server.status()) ? kExitUsage : kExitStartFailure;
   }
   if (!portFile.empty()) {
-    absl::Status written = srv::WriteFileAtomic(portFile, std::to_string((*server)->port()) + "\n");
+    absl::Status written =
+        probebake::runtime::WriteFileAtomic(portFile, std::to_string((*server)->port()) + "\n");
     if (!written.ok()) {
       Logger("server")->error("--port-file: {}", std::string(written.message()));
       return kExitStartFailure;
