@@ -1,4 +1,4 @@
-// probebake: bake locally, inspect volumes, and drive a probebake-server (SPEC 8).
+// probebake: bake locally, inspect volumes, and drive a probebake-server (docs/service.md).
 //
 //   probebake bake JOB.json -o OUT.vdb [--threads N] [--json]
 //   probebake inspect OUT.vdb [--json] [--slice AXIS=VALUE -o PNG]
@@ -434,6 +434,11 @@ int RunList(const ClientFlags& flags, int pageSize) {
 
 int Main(int argc, char** argv) {
   CLI::App app{"probebake: bake light probes locally or on a probebake-server"};
+  app.footer(
+      "Documentation, in the docs/ folder of the probebake repository:\n"
+      "  job-format.md      the job file\n"
+      "  volume-format.md   the .vdb a bake writes (inspect, merge)\n"
+      "  service.md         the server, and the commands that drive it (submit ... list)");
   app.require_subcommand(1);
   std::string logLevel = "warn";
   app.add_option("--log-level", logLevel, "trace, debug, info, warn, error or off")
@@ -445,8 +450,9 @@ int Main(int argc, char** argv) {
   ClientFlags flags;
 
   CLI::App* bake = app.add_subcommand("bake", "Bake JOB.json locally, in process");
-  bake->add_option("job", jobPath, "Job file (SPEC 4a)")->required();
-  bake->add_option("-o,--output", out, "Probe volume to write (.vdb)")->required();
+  bake->add_option("job", jobPath, "Job file (docs/job-format.md)")->required();
+  bake->add_option("-o,--output", out, "Probe volume to write (.vdb, docs/volume-format.md)")
+      ->required();
   bake->add_option("--threads", threads, "Worker threads (0: all)")->check(CLI::NonNegativeNumber);
   bake->add_flag("--json", json, "Progress and result as JSON lines on stdout");
 
@@ -455,7 +461,7 @@ int Main(int argc, char** argv) {
   checkAssets->group("");
   checkAssets->add_option("job", jobPath)->required();
   CLI::App* inspect = app.add_subcommand("inspect", "Describe a probe volume file");
-  inspect->add_option("volume", path, "Probe volume (.vdb)")->required();
+  inspect->add_option("volume", path, "Probe volume (.vdb, docs/volume-format.md)")->required();
   inspect->add_flag("--json", json, "One JSON object on stdout");
   inspect->add_option("--slice", slice, "AXIS=VALUE: render an irradiance slice to -o PNG");
   inspect->add_option("-o,--output", out, "PNG for --slice");
@@ -463,11 +469,11 @@ int Main(int argc, char** argv) {
   std::vector<std::string> parts;
   CLI::App* merge =
       app.add_subcommand("merge", "Merge the volumes of sub-grids of one grid (a sharded bake)");
-  merge->add_option("volumes", parts, "Probe volumes (.vdb) baked from sub-grids")->required();
+  merge->add_option("volumes", parts, "Sub-grid volumes (.vdb, docs/volume-format.md)")->required();
   merge->add_option("-o,--output", out, "Merged probe volume to write (.vdb)")->required();
 
   CLI::App* submit = app.add_subcommand("submit", "Upload JOB.json's files and queue the bake");
-  submit->add_option("job", jobPath, "Job file (SPEC 4a)")->required();
+  submit->add_option("job", jobPath, "Job file (docs/job-format.md)")->required();
   submit->add_flag("--wait", wait, "Watch the job until it ends");
   submit->add_option("-o,--output", out, "Fetch the volume here when it succeeds (implies --wait)");
   submit->add_flag("--skip-cache", skipCache, "Bake even if the result cache has this job");

@@ -1,5 +1,5 @@
-// The content-addressed blob store under DATA/blobs (SPEC 8): meshes, environment maps and baked
-// volumes, each stored once under its SHA-256.
+// The content-addressed blob store under DATA/blobs (docs/service.md): meshes, environment maps and
+// baked volumes, each stored once under its SHA-256.
 //
 // Layout: DATA/blobs/<hash[0..2]>/<hash> holds the verified bytes; DATA/uploads/<hash>_<size>
 // holds the bytes received so far of an unfinished upload, so a broken upload resumes from its

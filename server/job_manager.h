@@ -1,4 +1,4 @@
-// Bake jobs as long-running operations (SPEC 8): admission (validation, request ids, the
+// Bake jobs as long-running operations (docs/service.md): admission (validation, request ids, the
 // result cache, the queue bound), scheduling on the oneTBB worker pool, cancellation, progress
 // fan-out to watchers, checkpoints and recovery after a restart. Knows nothing of gRPC: errors are
 // absl::Status (the service maps them to gRPC codes), watchers implement JobSubscriber.
