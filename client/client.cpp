@@ -24,8 +24,8 @@
 #include "probebake/job/asset_source.h"
 #include "probebake/job/digest.h"
 #include "probebake/job/file_refs.h"
-#include "server/file_util.h"
-#include "server/job_state.h"
+#include "runtime/files.h"
+#include "runtime/job_state.h"
 
 namespace probebake::client {
 
@@ -74,7 +74,7 @@ absl::StatusOr<std::unique_ptr<Client>> Client::Connect(const ConnectOptions& op
   if (options.tls || !options.tlsCaFile.empty()) {
     grpc::SslCredentialsOptions ssl;
     if (!options.tlsCaFile.empty()) {
-      absl::StatusOr<std::string> roots = server::ReadWholeFile(options.tlsCaFile);
+      absl::StatusOr<std::string> roots = runtime::ReadWholeFile(options.tlsCaFile);
       if (!roots.ok())
         return absl::InvalidArgumentError(
             absl::StrCat("--tls-ca: ", std::string(roots.status().message())));
@@ -332,7 +332,7 @@ absl::StatusOr<v1::BakeJob> Client::Watch(const std::string& name,
       last = job;
     }
     grpc::Status status = reader->Finish();
-    if (status.ok() && any && server::IsFinal(last.state())) return last;
+    if (status.ok() && any && runtime::IsFinal(last.state())) return last;
     if (status.ok()) status = {grpc::StatusCode::UNAVAILABLE, "the watch ended early"};
     if (status.error_code() != grpc::StatusCode::UNAVAILABLE) return FromGrpc(status);
     // The server restarts (draining or gone): wait for it, within reconnectFor.
@@ -420,7 +420,7 @@ absl::Status Client::FetchBlob(const v1::Digest& digest, const std::filesystem::
   if (have != digest.size_bytes())
     return absl::DataLossError(absl::StrCat("received ", have, " of ", digest.size_bytes(),
                                             " bytes; run fetch again to continue"));
-  PB_ASSIGN_OR_RETURN(std::string hash, server::Sha256OfFile(part));
+  PB_ASSIGN_OR_RETURN(std::string hash, runtime::Sha256OfFile(part));
   if (hash != digest.hash()) {
     std::filesystem::remove(part, ec);
     return absl::DataLossError(absl::StrCat(

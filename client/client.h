@@ -120,7 +120,7 @@ absl::Status FromGrpc(const grpc::Status& status);
 // A fresh request id: 32 random lowercase hex digits.
 std::string NewRequestId();
 
-// SPEC 8 exit codes for an error: 4 could not reach or authenticate to the server
+// The exit codes for an error (docs/service.md): 4 could not reach or authenticate to the server
 // (UNAVAILABLE, UNAUTHENTICATED, PERMISSION_DENIED, DEADLINE_EXCEEDED), 2 bad usage or input
 // (INVALID_ARGUMENT, FAILED_PRECONDITION, NOT_FOUND, OUT_OF_RANGE, ALREADY_EXISTS), 1 otherwise.
 int ExitCodeFor(const absl::Status& status);

@@ -1,4 +1,4 @@
-// probebake: bake locally, inspect volumes, and drive a probebake-server (SPEC 8).
+// probebake: bake locally, inspect volumes, and drive a probebake-server (docs/service.md).
 //
 //   probebake bake JOB.json -o OUT.vdb [--threads N] [--json]
 //   probebake inspect OUT.vdb [--json] [--slice AXIS=VALUE -o PNG]
@@ -37,10 +37,9 @@
 #include "probebake/volume/vdb_io.h"
 #include "probebake/volume/volume_inspect.h"
 #include "probebake/volume/volume_merge.h"
-#include "server/asset_check.h"
-#include "server/bake_backend.h"
-#include "server/file_util.h"
-#include "server/job_state.h"
+#include "runtime/asset_check.h"
+#include "runtime/files.h"
+#include "runtime/job_state.h"
 
 namespace probebake::client {
 namespace {
@@ -104,7 +103,7 @@ absl::StatusOr<std::unique_ptr<Client>> ConnectFrom(const ClientFlags& flags) {
         flags.server.empty() ? "$PROBEBAKE_SERVER" : "--server", ": ", address.message()));
   }
   if (!flags.tokenFile.empty()) {
-    absl::StatusOr<std::string> token = server::ReadWholeFile(flags.tokenFile);
+    absl::StatusOr<std::string> token = runtime::ReadWholeFile(flags.tokenFile);
     if (!token.ok())
       return absl::InvalidArgumentError(
           absl::StrCat("--token-file: ", std::string(token.status().message())));
@@ -140,7 +139,7 @@ int CheckOutput(const std::string& out) {
   return kExitOk;
 }
 
-// A job's mesh and map files are imported in a child first (server/asset_check.h): a file that
+// A job's mesh and map files are imported in a child first (runtime/asset_check.h): a file that
 // crashes or hangs the importer is reported with its field instead of taking the CLI with it.
 constexpr std::chrono::seconds kAssetCheckTimeout{600};
 
@@ -159,7 +158,7 @@ int RunBake(const std::string& jobPath, const std::string& out, int threads, boo
   if (absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
       spec.ok() && !ListFileReferences(*spec).empty()) {
     const absl::Status checked =
-        server::RunAssetCheck({SelfExecutable(), "check-assets", jobPath}, kAssetCheckTimeout);
+        runtime::RunAssetCheck({SelfExecutable(), "check-assets", jobPath}, kAssetCheckTimeout);
     if (!checked.ok()) return Fail(checked, jobPath);
   }
   absl::StatusOr<BakeJob> job = LoadBakeJob(jobPath, JobLimits());
@@ -263,7 +262,7 @@ int WatchAndReport(Client& client, const std::string& name, ProgressView& view,
 
 int Fetch(Client& client, const v1::BakeJob& job, const std::string& out, ProgressView& view) {
   if (job.state() != v1::BakeJob::SUCCEEDED) {
-    if (server::IsFinal(job.state()))
+    if (runtime::IsFinal(job.state()))
       return Fail(kExitJobFailed, absl::StrCat(JobSummary(job), "; nothing to fetch"));
     return Fail(kExitUsage,
                 absl::StrCat(job.name(), " has not finished (",
@@ -298,7 +297,7 @@ absl::Status FitsInOneMessage(const v1::JobSpec& spec, int64_t maxMessageBytes) 
   // limit for the rest of a job's record.
   constexpr int64_t kOverhead = 4096;
   const int64_t bytes = int64_t(spec.ByteSizeLong()) + kOverhead;
-  maxMessageBytes -= server::kJobRecordReserve;
+  maxMessageBytes -= runtime::kJobRecordReserve;
   if (maxMessageBytes <= 0 || bytes <= maxMessageBytes) return absl::OkStatus();
   int largest = -1;
   for (int i = 0; i < spec.scene().meshes_size(); ++i) {
@@ -315,7 +314,7 @@ absl::Status FitsInOneMessage(const v1::JobSpec& spec, int64_t maxMessageBytes) 
   return absl::InvalidArgumentError(absl::StrCat(
       "the job is about ", bytes,
       " bytes as a request, over the server's message limit for a job of ", maxMessageBytes,
-      " bytes (max_message_bytes less ", server::kJobRecordReserve, " for its record)", hint));
+      " bytes (max_message_bytes less ", runtime::kJobRecordReserve, " for its record)", hint));
 }
 
 int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
@@ -354,7 +353,7 @@ int RunSubmit(const ClientFlags& flags, const std::string& jobPath, bool wait,
   std::fflush(stdout);
   if (!wait && out.empty()) return kExitOk;
   v1::BakeJob final = *job;
-  if (!server::IsFinal(job->state())) {
+  if (!runtime::IsFinal(job->state())) {
     int code = WatchAndReport(**client, job->name(), view, &final);
     if (code != kExitOk) return code;
   }
@@ -398,7 +397,7 @@ int RunCancel(const ClientFlags& flags, const std::string& name) {
   if (!client.ok()) return Fail(client.status());
   absl::StatusOr<v1::BakeJob> job = (*client)->CancelJob(name);
   if (!job.ok()) return Fail(job.status());
-  if (!server::IsFinal(job->state())) {
+  if (!runtime::IsFinal(job->state())) {
     // Cancellation reaches the baker within a fraction of a second: wait for the final state.
     job = (*client)->Watch(
         name, [](const v1::BakeJob&) {}, std::chrono::seconds(10));
@@ -435,6 +434,11 @@ int RunList(const ClientFlags& flags, int pageSize) {
 
 int Main(int argc, char** argv) {
   CLI::App app{"probebake: bake light probes locally or on a probebake-server"};
+  app.footer(
+      "Documentation, in the docs/ folder of the probebake repository:\n"
+      "  job-format.md      the job file\n"
+      "  volume-format.md   the .vdb a bake writes (inspect, merge)\n"
+      "  service.md         the server, and the commands that drive it (submit ... list)");
   app.require_subcommand(1);
   std::string logLevel = "warn";
   app.add_option("--log-level", logLevel, "trace, debug, info, warn, error or off")
@@ -446,17 +450,18 @@ int Main(int argc, char** argv) {
   ClientFlags flags;
 
   CLI::App* bake = app.add_subcommand("bake", "Bake JOB.json locally, in process");
-  bake->add_option("job", jobPath, "Job file (SPEC 4a)")->required();
-  bake->add_option("-o,--output", out, "Probe volume to write (.vdb)")->required();
+  bake->add_option("job", jobPath, "Job file (docs/job-format.md)")->required();
+  bake->add_option("-o,--output", out, "Probe volume to write (.vdb, docs/volume-format.md)")
+      ->required();
   bake->add_option("--threads", threads, "Worker threads (0: all)")->check(CLI::NonNegativeNumber);
   bake->add_flag("--json", json, "Progress and result as JSON lines on stdout");
 
-  // The child of the local bake's asset check (server/asset_check.h); not for people.
+  // The child of the local bake's asset check (runtime/asset_check.h); not for people.
   CLI::App* checkAssets = app.add_subcommand("check-assets");
   checkAssets->group("");
   checkAssets->add_option("job", jobPath)->required();
   CLI::App* inspect = app.add_subcommand("inspect", "Describe a probe volume file");
-  inspect->add_option("volume", path, "Probe volume (.vdb)")->required();
+  inspect->add_option("volume", path, "Probe volume (.vdb, docs/volume-format.md)")->required();
   inspect->add_flag("--json", json, "One JSON object on stdout");
   inspect->add_option("--slice", slice, "AXIS=VALUE: render an irradiance slice to -o PNG");
   inspect->add_option("-o,--output", out, "PNG for --slice");
@@ -464,11 +469,11 @@ int Main(int argc, char** argv) {
   std::vector<std::string> parts;
   CLI::App* merge =
       app.add_subcommand("merge", "Merge the volumes of sub-grids of one grid (a sharded bake)");
-  merge->add_option("volumes", parts, "Probe volumes (.vdb) baked from sub-grids")->required();
+  merge->add_option("volumes", parts, "Sub-grid volumes (.vdb, docs/volume-format.md)")->required();
   merge->add_option("-o,--output", out, "Merged probe volume to write (.vdb)")->required();
 
   CLI::App* submit = app.add_subcommand("submit", "Upload JOB.json's files and queue the bake");
-  submit->add_option("job", jobPath, "Job file (SPEC 4a)")->required();
+  submit->add_option("job", jobPath, "Job file (docs/job-format.md)")->required();
   submit->add_flag("--wait", wait, "Watch the job until it ends");
   submit->add_option("-o,--output", out, "Fetch the volume here when it succeeds (implies --wait)");
   submit->add_flag("--skip-cache", skipCache, "Bake even if the result cache has this job");
@@ -506,7 +511,7 @@ int Main(int argc, char** argv) {
 
   if (*checkAssets) {
     SetLogLevel(spdlog::level::warn);  // the bake that spawned it logs what matters
-    return server::RunLocalAssetCheckChild(jobPath, JobLimits());
+    return runtime::RunLocalAssetCheckChild(jobPath, JobLimits());
   }
   if (*bake) return RunBake(jobPath, out, threads, json);
   if (*inspect) return RunInspect(path, json, slice, out);

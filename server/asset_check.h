@@ -1,19 +1,11 @@
-// A job's assets imported first in a child process, so that a file that crashes or hangs an
-// importer (assimp has both kinds of bug) costs a child, not the server (SPEC 6: a server never
-// dies on a client's input) or the local CLI.
-//
-// The server runs the check before it builds a job in process: the child
-// (`probebake-server <the server's own flags> --check-job-assets SPEC_FILE`) opens the blob store,
-// builds the job exactly as the server would (same limits, same code) and reports on stdout:
-//   one line "asset <fieldPath>" as it starts reading each asset, then "status <code>" and the
-//   status message to the end.
-// A local bake does the same with `probebake check-assets JOB.json`, which reads the job's files.
-// The parent turns a child killed by a signal or past the time limit into INVALID_ARGUMENT naming
-// the asset the child was reading; a clean report is returned as the child's status. Importing is
-// deterministic, so a job the child built the parent builds the same way.
+// The server's asset check (runtime/asset_check.h): before the server builds a job in process, a
+// child (`probebake-server <the server's own flags> --check-job-assets SPEC_FILE`) opens the blob
+// store, builds the job exactly as the server would (same limits, same code) and reports; a file
+// that crashes or hangs the importer then costs the child, not the server.
 #pragma once
 
 #include <chrono>
+#include <cstdint>
 #include <filesystem>
 #include <mutex>
 #include <set>
@@ -49,17 +41,9 @@ class AssetCheck {
   mutable std::set<std::string> passed_;  // SHA-256 of the specs that passed
 };
 
-// Runs the check command `argv` (the child prints the report above) and interprets its outcome
-// as AssetCheck::Check describes; what the local CLI uses, with its own child.
-absl::Status RunAssetCheck(std::vector<std::string> argv, std::chrono::seconds timeout);
-
-// The local CLI's child: builds the job file at `jobPath` with its files (as a local bake reads
-// them) and writes the report to stdout. Returns the exit code (0 when a report was written).
-int RunLocalAssetCheckChild(const std::string& jobPath, const JobLimits& limits);
-
 // The server's child: reads the JobSpec (binary protobuf) at `specFile`, builds it over the blob
-// store under `dataDir` with `limits`, and writes the report above to stdout. Returns the process
-// exit code (0 when a report was written, whatever its status).
+// store under `dataDir` with `limits`, and writes the report (runtime/asset_check.h) to stdout.
+// Returns the process exit code (0 when a report was written, whatever its status).
 int RunAssetCheckChild(const std::filesystem::path& specFile, const std::filesystem::path& dataDir,
                        int64_t maxBlobBytes, const JobLimits& limits);
 

@@ -8,12 +8,12 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "probebake/base/status.h"
-#include "server/file_util.h"
+#include "runtime/files.h"
 
 namespace probebake::server {
 
 absl::StatusOr<std::string> TokenAuth::ReadTokenFile(const std::filesystem::path& path) {
-  absl::StatusOr<std::string> bytes = ReadWholeFile(path);
+  absl::StatusOr<std::string> bytes = runtime::ReadWholeFile(path);
   if (!bytes.ok())
     return absl::InvalidArgumentError(
         absl::StrCat("--token-file ", path.string(), ": ", std::string(bytes.status().message())));

@@ -1,4 +1,4 @@
-// Bearer-token authentication (SPEC 8): with a token configured, every RPC but gRPC health
+// Bearer-token authentication (docs/service.md): with a token configured, every RPC but gRPC health
 // checking must carry "authorization: Bearer <token>" metadata, else UNAUTHENTICATED.
 //
 // probebake's own handlers call TokenAuth::Check first thing. Services the gRPC library

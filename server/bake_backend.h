@@ -48,7 +48,7 @@ class BlobAssetSource final : public AssetSource {
   int64_t maxBytes_;
 };
 
-// The message for a `file` reference in a server request (SPEC 8).
+// The message for a `file` reference in a server request (docs/service.md).
 std::string ClientPathRefusal(const std::string& fieldPath);
 
 // BuildBakeJob over BlobAssetSource, probebake::Bake and WriteProbeVolume.

@@ -1,7 +1,5 @@
 #include "server/blob_store.h"
 
-#include "server/file_util.h"
-
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -13,9 +11,12 @@
 #include <system_error>
 
 #include "absl/strings/str_cat.h"
+#include "probebake/base/atomic_file.h"
 #include "probebake/base/check.h"
+#include "probebake/base/io_error.h"
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
+#include "runtime/files.h"
 
 namespace probebake::server {
 namespace fs = std::filesystem;
@@ -29,7 +30,7 @@ absl::Status WriteAll(int fd, std::string_view data, const fs::path& path) {
     ssize_t n = ::write(fd, data.data(), data.size());
     if (n < 0) {
       if (errno == EINTR) continue;
-      return ErrnoError("write", path, errno);
+      return IoError(errno, path.string(), "write");
     }
     data.remove_prefix(size_t(n));
   }
@@ -64,15 +65,12 @@ void StampUsed(const fs::path& path) {
 
 absl::Status ValidateDigest(const v1::Digest& digest, std::string_view fieldPath) {
   const std::string& hash = digest.hash();
-  if (hash.size() != 64)
+  if (!IsSha256Hex(hash))
     return FieldError(absl::StrCat(std::string(fieldPath), ".hash"),
-                      absl::StrCat("expected 64 lowercase hex characters (SHA-256), got ",
-                                   hash.size(), " characters"));
-  for (char c : hash) {
-    if (!((c >= '0' && c <= '9') || (c >= 'a' && c <= 'f')))
-      return FieldError(absl::StrCat(std::string(fieldPath), ".hash"),
-                        "expected lowercase hex characters (SHA-256)");
-  }
+                      hash.size() != 64
+                          ? absl::StrCat("expected 64 lowercase hex characters (SHA-256), got ",
+                                         hash.size(), " characters")
+                          : std::string("expected lowercase hex characters (SHA-256)"));
   if (digest.size_bytes() < 0)
     return FieldError(absl::StrCat(std::string(fieldPath), ".sizeBytes"), "must be >= 0");
   return absl::OkStatus();
@@ -85,10 +83,7 @@ std::string DigestString(const v1::Digest& digest) {
 // ---- BlobUpload ----
 
 BlobUpload::BlobUpload(BlobStore* store, v1::Digest digest, fs::path partialPath)
-    : store_(store),
-      digest_(std::move(digest)),
-      partialPath_(std::move(partialPath)),
-      hash_(std::make_unique<Sha256Stream>()) {}
+    : store_(store), digest_(std::move(digest)), partialPath_(std::move(partialPath)) {}
 
 BlobUpload::~BlobUpload() {
   if (fd_ >= 0) {
@@ -109,17 +104,17 @@ absl::Status BlobUpload::Open() {
   fd_ = ::open(partialPath_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0644);
   if (fd_ >= 0) {
     // A new partial upload: its name must survive a crash as its bytes will.
-    PB_RETURN_IF_ERROR(FsyncDir(partialPath_.parent_path()));
+    PB_RETURN_IF_ERROR(FsyncDirectory(partialPath_.parent_path().string()));
   } else if (errno == EEXIST) {
     fd_ = ::open(partialPath_.c_str(), O_RDWR | O_CLOEXEC);
   }
-  if (fd_ < 0) return ErrnoError("open", partialPath_, errno);
+  if (fd_ < 0) return IoError(errno, partialPath_.string(), "open");
   struct stat st;
-  if (::fstat(fd_, &st) != 0) return ErrnoError("stat", partialPath_, errno);
+  if (::fstat(fd_, &st) != 0) return IoError(errno, partialPath_.string(), "stat");
   size_ = st.st_size;
   if (size_ > digest_.size_bytes()) {
     // Cannot be the prefix of this blob: start over.
-    if (::ftruncate(fd_, 0) != 0) return ErrnoError("truncate", partialPath_, errno);
+    if (::ftruncate(fd_, 0) != 0) return IoError(errno, partialPath_.string(), "truncate");
     size_ = 0;
   }
   // Resuming: the hash covers the bytes received by earlier uploads.
@@ -128,9 +123,9 @@ absl::Status BlobUpload::Open() {
     PB_RETURN_IF_ERROR(ReadFully(fd_, offset, std::min(kHashBufferBytes, size_ - offset), &buffer));
     if (int64_t(buffer.size()) != std::min(kHashBufferBytes, size_ - offset))
       return absl::InternalError("partial upload shrank while being read");
-    hash_->Update(buffer);
+    hash_.Update(buffer);
   }
-  if (::lseek(fd_, size_, SEEK_SET) < 0) return ErrnoError("seek", partialPath_, errno);
+  if (::lseek(fd_, size_, SEEK_SET) < 0) return IoError(errno, partialPath_.string(), "seek");
   return absl::OkStatus();
 }
 
@@ -143,7 +138,7 @@ absl::Status BlobUpload::Append(int64_t offset, std::string_view data) {
     return FieldError("data", absl::StrCat("the blob would exceed its digest's size ",
                                            digest_.size_bytes(), " bytes"));
   PB_RETURN_IF_ERROR(WriteAll(fd_, data, partialPath_));
-  hash_->Update(data);
+  hash_.Update(data);
   size_ += int64_t(data.size());
   return absl::OkStatus();
 }
@@ -163,13 +158,13 @@ absl::Status BlobUpload::Commit() {
                       absl::StrCat("received ", size_, " bytes of ", digest_.size_bytes(),
                                    "; the blob is incomplete"));
   }
-  std::string hash = hash_->FinalHex();
+  std::string hash = hash_.FinalHex();
   if (hash != digest_.hash()) {
     discard();
     return FieldError("digest.hash",
                       absl::StrCat("the uploaded bytes hash to ", hash, ", not ", digest_.hash()));
   }
-  if (::fsync(fd_) != 0) return ErrnoError("fsync", partialPath_, errno);
+  if (::fsync(fd_) != 0) return IoError(errno, partialPath_.string(), "fsync");
   ::close(fd_);
   fd_ = -1;
   done_ = true;
@@ -205,7 +200,7 @@ absl::StatusOr<std::unique_ptr<BlobStore>> BlobStore::Open(const fs::path& dataD
   for (const fs::path& dir : {blobs, uploads, tmp}) {
     std::error_code ec;
     fs::create_directories(dir, ec);
-    if (ec) return ErrnoError("create", dir, ec.value());
+    if (ec) return IoError(ec.value(), dir.string(), "create");
   }
   // Scratch files of an earlier run are garbage (results are imported before a job completes).
   std::error_code ec;
@@ -262,16 +257,16 @@ absl::StatusOr<int64_t> BlobStore::CommittedSize(const v1::Digest& digest, bool*
   const int fd = ::open(partial.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) {
     if (errno == ENOENT) return 0;
-    return ErrnoError("open", partial, errno);
+    return IoError(errno, partial.string(), "open");
   }
   // The size first, then the sync: uploads only append, so every byte counted was written before
   // the fdatasync began and is on disk when it returns. (An open upload goes on appending.)
   struct stat st;
   absl::Status status;
   if (::fstat(fd, &st) != 0) {
-    status = ErrnoError("stat", partial, errno);
+    status = IoError(errno, partial.string(), "stat");
   } else if (::fdatasync(fd) != 0) {
-    status = ErrnoError("fdatasync", partial, errno);
+    status = IoError(errno, partial.string(), "fdatasync");
   }
   ::close(fd);
   PB_RETURN_IF_ERROR(status);
@@ -305,14 +300,14 @@ absl::Status BlobStore::Publish(const fs::path& from, const std::string& hash) {
   fs::path target = BlobPath(hash);
   std::error_code ec;
   fs::create_directories(target.parent_path(), ec);
-  if (ec) return ErrnoError("create", target.parent_path(), ec.value());  // ENOSPC: no inode
+  if (ec) return IoError(ec.value(), target.parent_path().string(), "create");  // ENOSPC: no inode
   {
     std::lock_guard lock(mutex_);  // not between a collection's check of the name and its removal
-    if (::rename(from.c_str(), target.c_str()) != 0) return ErrnoError("rename", from, errno);
+    if (::rename(from.c_str(), target.c_str()) != 0) return IoError(errno, from.string(), "rename");
     // Stored now, whenever its bytes were written: what a collection under way compares with.
     StampUsed(target);
   }
-  PB_RETURN_IF_ERROR(FsyncDir(target.parent_path()));
+  PB_RETURN_IF_ERROR(FsyncDirectory(target.parent_path().string()));
   Logger("blobs")->debug("stored blob {}", hash);
   return absl::OkStatus();
 }
@@ -324,7 +319,7 @@ absl::StatusOr<std::unique_ptr<BlobReader>> BlobStore::OpenRead(const v1::Digest
   if (fd < 0) {
     if (errno == ENOENT)
       return absl::NotFoundError(absl::StrCat("blob ", DigestString(digest), " is not stored"));
-    return ErrnoError("open", path, errno);
+    return IoError(errno, path.string(), "open");
   }
   struct stat st;
   if (::fstat(fd, &st) != 0 || st.st_size != digest.size_bytes()) {
@@ -345,11 +340,11 @@ absl::StatusOr<std::string> BlobStore::ReadAll(const v1::Digest& digest) const {
 
 absl::StatusOr<v1::Digest> BlobStore::ImportFile(const fs::path& path) {
   int64_t size = 0;
-  PB_ASSIGN_OR_RETURN(std::string hash, Sha256OfFile(path, &size));
+  PB_ASSIGN_OR_RETURN(std::string hash, runtime::Sha256OfFile(path, &size));
   int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
-  if (fd < 0) return ErrnoError("open", path, errno);
+  if (fd < 0) return IoError(errno, path.string(), "open");
   absl::Status status;
-  if (::fsync(fd) != 0) status = ErrnoError("fsync", path, errno);
+  if (::fsync(fd) != 0) status = IoError(errno, path.string(), "fsync");
   ::close(fd);
   PB_RETURN_IF_ERROR(status);
   v1::Digest digest;

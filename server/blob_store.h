@@ -1,5 +1,5 @@
-// The content-addressed blob store under DATA/blobs (SPEC 8): meshes, environment maps and baked
-// volumes, each stored once under its SHA-256.
+// The content-addressed blob store under DATA/blobs (docs/service.md): meshes, environment maps and
+// baked volumes, each stored once under its SHA-256.
 //
 // Layout: DATA/blobs/<hash[0..2]>/<hash> holds the verified bytes; DATA/uploads/<hash>_<size>
 // holds the bytes received so far of an unfinished upload, so a broken upload resumes from its
@@ -28,8 +28,8 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "probebake/job/digest.h"
 #include "probebake/v1/job.pb.h"
-#include "server/file_util.h"
 
 namespace probebake::server {
 
@@ -73,7 +73,7 @@ class BlobUpload {
   int fd_ = -1;
   int64_t size_ = 0;
   bool done_ = false;
-  std::unique_ptr<Sha256Stream> hash_;
+  Sha256 hash_;
 };
 
 // A stored blob opened for reading; the file's size equals the digest's.

@@ -7,7 +7,7 @@
 #include "absl/strings/str_cat.h"
 #include "probebake/base/status.h"
 #include "probebake/job/digest.h"
-#include "server/file_util.h"
+#include "runtime/files.h"
 
 namespace probebake::server {
 namespace {
@@ -152,7 +152,7 @@ absl::Status WriteCheckpoint(const std::filesystem::path& path, const std::strin
   w.Pod(work.rays);
   std::string hash = Sha256Hex(w.bytes());
   w.bytes().append(hash);
-  return WriteFileAtomic(path, w.bytes());
+  return runtime::WriteFileAtomic(path, w.bytes());
 }
 
 namespace {
@@ -160,7 +160,7 @@ namespace {
 // `expectedJobDigest` null: any.
 absl::StatusOr<Checkpoint> Read(const std::filesystem::path& path,
                                 const std::string* expectedJobDigest) {
-  PB_ASSIGN_OR_RETURN(std::string bytes, ReadWholeFile(path));
+  PB_ASSIGN_OR_RETURN(std::string bytes, runtime::ReadWholeFile(path));
   auto corrupt = [&](std::string_view why) {
     return absl::DataLossError(absl::StrCat("checkpoint ", path.string(), ": ", std::string(why)));
   };

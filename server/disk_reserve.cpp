@@ -8,6 +8,8 @@
 #include <algorithm>
 #include <cstring>
 
+#include "probebake/base/atomic_file.h"
+#include "probebake/base/io_error.h"
 #include "probebake/base/log.h"
 
 namespace probebake::server {
@@ -36,16 +38,16 @@ int64_t AvailableBytes(const fs::path& dir) {
 }  // namespace
 
 bool DiskReserve::AllocateLocked(int64_t bytes) {
-  const fs::path tmp = fs::path(path_).concat(".tmp");
-  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
-  if (fd < 0) return false;
-  const int err = ::posix_fallocate(fd, 0, off_t(bytes));
-  const bool synced = err == 0 && ::fsync(fd) == 0;
-  ::close(fd);
-  if (!synced || ::rename(tmp.c_str(), path_.c_str()) != 0) {
-    ::unlink(tmp.c_str());
-    Logger("server")->warn("no disk reserve: {}: {}", path_.string(),
-                           std::strerror(err != 0 ? err : errno));
+  // Whole or not at all: a reserve cut short by a crash would hold less than it claims.
+  absl::StatusOr<AtomicFile> file =
+      AtomicFile::Create(path_.string(), AtomicFile::Temp::kBesidePath);
+  absl::Status status = file.status();
+  if (status.ok()) {
+    const int err = ::posix_fallocate(file->fd(), 0, off_t(bytes));
+    status = err != 0 ? IoError(err, file->tempPath(), "fallocate") : file->Commit();
+  }
+  if (!status.ok()) {
+    Logger("server")->warn("no disk reserve: {}", std::string(status.message()));
     return false;
   }
   Logger("server")->info("holding {} MiB of disk in reserve ({})", bytes >> 20, path_.string());

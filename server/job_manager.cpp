@@ -260,12 +260,12 @@ absl::StatusOr<v1::BakeJob> JobManager::CreateJob(const v1::CreateBakeJobRequest
   }
   if (!request.has_job()) return FieldError("job", "required");
   if (const int64_t bytes = int64_t(request.job().ByteSizeLong()),
-      limit = config_.maxMessageBytes - kJobRecordReserve;
+      limit = config_.maxMessageBytes - runtime::kJobRecordReserve;
       bytes > limit)
     return FieldError(
         "job",
         absl::StrCat(bytes, " bytes, over the ", limit, " a job may take (max_message_bytes less ",
-                     kJobRecordReserve, " for its record); put large meshes in files"));
+                     runtime::kJobRecordReserve, " for its record); put large meshes in files"));
   PB_RETURN_IF_ERROR(ValidateForServer(request.job()));
   // Reads every asset, so a mesh or map that does not parse is refused now, not mid-bake; the
   // built job also gives the digest that keys the result cache.
@@ -398,7 +398,7 @@ absl::StatusOr<v1::BakeJob> JobManager::CancelJob(const std::string& name) {
   std::lock_guard lock(mutex_);
   auto running = running_.find(name);
   // A job whose end is stored (and announced) is finished, though its worker is still leaving.
-  if (running != running_.end() && !IsFinal(running->second->record.state())) {
+  if (running != running_.end() && !runtime::IsFinal(running->second->record.state())) {
     RunningJob& job = *running->second;
     if (!job.record.cancel_requested()) {
       // Stored first: a cancel the store refuses (a full disk) is an error, and neither stops
@@ -420,7 +420,7 @@ absl::StatusOr<v1::BakeJob> JobManager::CancelJob(const std::string& name) {
   PB_ASSIGN_OR_RETURN(std::optional<StoredJob> stored, store_->Get(name));
   if (!stored) return absl::NotFoundError(absl::StrCat(name, ": no such job"));
   v1::BakeJob record = std::move(stored->record);
-  if (IsFinal(record.state())) return record;
+  if (runtime::IsFinal(record.state())) return record;
   // Queued (running jobs are all in running_).
   record.set_state(v1::BakeJob::CANCELLED);
   record.set_cancel_requested(true);
@@ -442,7 +442,7 @@ absl::Status JobManager::DeleteJob(const std::string& name) {
   std::lock_guard lock(mutex_);
   // A job whose end is stored (and announced) is finished, though its worker is still leaving.
   if (auto running = running_.find(name);
-      running != running_.end() && !IsFinal(running->second->record.state()))
+      running != running_.end() && !runtime::IsFinal(running->second->record.state()))
     return absl::FailedPreconditionError(
         absl::StrCat(name, ": the job is running; cancel it first"));
   PB_ASSIGN_OR_RETURN(bool existed, store_->Delete(name));
@@ -461,10 +461,10 @@ absl::Status JobManager::Subscribe(const std::string& name,
   std::lock_guard lock(mutex_);
   PB_ASSIGN_OR_RETURN(std::optional<v1::BakeJob> job, LoadLocked(name, false));
   if (!job) return absl::NotFoundError(absl::StrCat(name, ": no such job; resubmit"));
-  if (!IsFinal(job->state()) && stopping_)
+  if (!runtime::IsFinal(job->state()) && stopping_)
     return absl::UnavailableError("the server is shutting down; watch again once it is back");
   subscriber->OnJobUpdate(*job);
-  if (IsFinal(job->state())) return absl::OkStatus();
+  if (runtime::IsFinal(job->state())) return absl::OkStatus();
   // Entries of this job's freed streams go now, so they never outnumber its live watchers.
   auto [begin, end] = subscribers_.equal_range(name);
   for (auto it = begin; it != end;) it = it->second.expired() ? subscribers_.erase(it) : ++it;
@@ -504,7 +504,7 @@ void JobManager::NotifyLocked(const v1::BakeJob& record) {
     subscriber->OnJobUpdate(record);
     ++it;
   }
-  if (IsFinal(record.state())) subscribers_.erase(record.name());
+  if (runtime::IsFinal(record.state())) subscribers_.erase(record.name());
 }
 
 void JobManager::EndSubscribersLocked(const std::string& name, const absl::Status& status) {
@@ -581,15 +581,21 @@ void JobManager::RunJob(const std::shared_ptr<RunningJob>& job) {
 }
 
 JobManager::Outcome JobManager::Execute(RunningJob& job) {
+  absl::StatusOr<BakeJob> built = LoadJob(job);
+  if (!built.ok()) return Stopped(job, built.status(), "load");
+  absl::StatusOr<ProbeVolume> volume =
+      BakeVolume(job, *built, ReadResumePoint(job, built->jobDigest));
+  if (!volume.ok()) return Stopped(job, volume.status(), "bake");
+  const BakeStats stats = CountEveryAttempt(job, *volume);
+  absl::StatusOr<v1::Digest> digest = StoreVolume(job, *volume, VolumeMetadataFor(*built));
+  if (!digest.ok()) return Stopped(job, digest.status(), "store");
+  return Succeeded(job.name, *digest, stats);
+}
+
+JobManager::Outcome JobManager::Stopped(RunningJob& job, const absl::Status& status,
+                                        std::string_view stage) {
   Outcome outcome;
-  auto fail = [&](const absl::Status& status, std::string_view stage) {
-    outcome.state = v1::BakeJob::FAILED;
-    outcome.error = ErrorOf(status, stage);
-    Logger("jobs")->warn("{}: failed ({}): {}", job.name, std::string(stage),
-                         std::string(status.message()));
-    return outcome;
-  };
-  auto cancelled = [&] {
+  if (absl::IsCancelled(status) && job.cancel) {
     if (job.reason.load() == int(CancelReason::kShutdown)) {
       outcome.state = v1::BakeJob::QUEUED;
     } else {
@@ -597,44 +603,71 @@ JobManager::Outcome JobManager::Execute(RunningJob& job) {
       outcome.error = ErrorOf(absl::CancelledError("cancelled by CancelBakeJob"), "bake");
     }
     return outcome;
-  };
+  }
+  outcome.state = v1::BakeJob::FAILED;
+  outcome.error = ErrorOf(status, stage);
+  Logger("jobs")->warn("{}: failed ({}): {}", job.name, std::string(stage),
+                       std::string(status.message()));
+  return outcome;
+}
 
+JobManager::Outcome JobManager::Succeeded(const std::string& name, const v1::Digest& volume,
+                                          const BakeStats& stats) {
+  Outcome outcome;
+  outcome.state = v1::BakeJob::SUCCEEDED;
+  v1::BakeJobResult& result = outcome.result;
+  *result.mutable_volume() = volume;
+  v1::BakeStats* s = result.mutable_stats();
+  s->set_wall_seconds(stats.wallSeconds);
+  s->set_threads(stats.threads);
+  s->set_probes(stats.probes);
+  s->set_samples(stats.samples);
+  s->set_rays(stats.rays);
+  s->set_invalid_probes(stats.invalidProbes);
+  result.set_cached_result(false);
+  result.set_source_job(name);
+  return outcome;
+}
+
+absl::StatusOr<BakeJob> JobManager::LoadJob(RunningJob& job) {
   absl::StatusOr<std::optional<v1::JobSpec>> spec = store_->GetSpec(job.name);
-  if (!spec.ok()) return fail(spec.status(), "load");
-  if (!*spec) return fail(absl::InternalError("the job's spec is gone from the store"), "load");
-  if (job.cancel) return cancelled();
+  if (!spec.ok()) return spec.status();
+  if (!*spec) return absl::InternalError("the job's spec is gone from the store");
+  if (job.cancel) return absl::CancelledError("cancelled before the job was built");
   absl::StatusOr<BakeJob> built = backend_.build(**spec);
-  if (!built.ok()) return fail(built.status(), "load");
-  std::string jobDigest;
+  if (!built.ok()) return built.status();
+  std::lock_guard lock(mutex_);
+  if (job.record.job_digest() != built->jobDigest) {
+    // The baker changed since the job was accepted: its digest (and any checkpoint) is stale.
+    Logger("jobs")->warn("{}: job digest changed from {} to {}", job.name, job.record.job_digest(),
+                         built->jobDigest);
+    job.record.set_job_digest(built->jobDigest);
+  }
+  return built;
+}
+
+std::optional<Checkpoint> JobManager::ReadResumePoint(RunningJob& job,
+                                                      const std::string& jobDigest) {
+  absl::StatusOr<Checkpoint> read = ReadCheckpoint(CheckpointPath(job.name), jobDigest);
+  if (!read.ok()) {
+    if (!absl::IsNotFound(read.status()))
+      Logger("jobs")->warn("{}: ignoring checkpoint: {}", job.name,
+                           std::string(read.status().message()));
+    return std::nullopt;
+  }
+  job.probesResumed = read->DoneCount();
   {
     std::lock_guard lock(mutex_);
-    if (job.record.job_digest() != built->jobDigest) {
-      // The baker changed since the job was accepted: its digest (and any checkpoint) is stale.
-      Logger("jobs")->warn("{}: job digest changed from {} to {}", job.name,
-                           job.record.job_digest(), built->jobDigest);
-      job.record.set_job_digest(built->jobDigest);
-    }
-    jobDigest = job.record.job_digest();
+    job.carried = read->work;
   }
+  Logger("jobs")->info(
+      "{}: resuming from a checkpoint with {} of {} probes done ({} samples, {:.3f} s so far)",
+      job.name, job.probesResumed, read->done.size(), read->work.samples, read->work.wallSeconds);
+  return std::move(*read);
+}
 
-  std::filesystem::path checkpointPath = CheckpointPath(job.name);
-  std::optional<Checkpoint> checkpoint;
-  if (absl::StatusOr<Checkpoint> read = ReadCheckpoint(checkpointPath, jobDigest); read.ok()) {
-    checkpoint = std::move(*read);
-    job.probesResumed = checkpoint->DoneCount();
-    {
-      std::lock_guard lock(mutex_);
-      job.carried = checkpoint->work;
-    }
-    Logger("jobs")->info(
-        "{}: resuming from a checkpoint with {} of {} probes done ({} samples, {:.3f} s so far)",
-        job.name, job.probesResumed, checkpoint->done.size(), checkpoint->work.samples,
-        checkpoint->work.wallSeconds);
-  } else if (!absl::IsNotFound(read.status())) {
-    Logger("jobs")->warn("{}: ignoring checkpoint: {}", job.name,
-                         std::string(read.status().message()));
-  }
-
+absl::StatusOr<ProbeVolume> JobManager::BakeVolume(RunningJob& job, const BakeJob& built,
+                                                   std::optional<Checkpoint> checkpoint) {
   BakeOptions options;
   options.threads = config_.threadsPerJob;
   options.cancel = &job.cancel;
@@ -642,63 +675,37 @@ JobManager::Outcome JobManager::Execute(RunningJob& job) {
   options.progress = [&](const BakeProgress& progress) { OnProgress(job, progress); };
   options.checkpointIntervalSeconds = config_.checkpointIntervalSeconds;
   options.checkpoint = [&](const ProbeVolume& volume, const std::vector<uint8_t>& done) {
-    OnCheckpoint(job, jobDigest, volume, done);
+    OnCheckpoint(job, built.jobDigest, volume, done);
   };
   if (checkpoint) {
     options.resumeFrom = &checkpoint->volume;
     options.resumeDone = &checkpoint->done;
   }
-  if (job.cancel) return cancelled();
-  absl::StatusOr<ProbeVolume> volume = backend_.bake(*built, options);
-  checkpoint.reset();
-  if (!volume.ok()) {
-    if (absl::IsCancelled(volume.status()) && job.cancel) return cancelled();
-    return fail(volume.status(), "bake");
-  }
+  if (job.cancel) return absl::CancelledError("cancelled before the bake started");
+  return backend_.bake(built, options);
+}
 
-  // Bake counted this attempt only; the volume's `stats` metadata and the result count every
-  // attempt (threads, probes and invalidProbes describe the volume as it is).
-  {
-    std::lock_guard lock(mutex_);
-    volume->stats.wallSeconds += job.carried.wallSeconds;
-    volume->stats.samples += job.carried.samples;
-    volume->stats.rays += job.carried.rays;
-  }
-  BakeStats stats = volume->stats;
+BakeStats JobManager::CountEveryAttempt(RunningJob& job, ProbeVolume& volume) {
+  std::lock_guard lock(mutex_);
+  volume.stats.wallSeconds += job.carried.wallSeconds;
+  volume.stats.samples += job.carried.samples;
+  volume.stats.rays += job.carried.rays;
+  return volume.stats;
+}
+
+absl::StatusOr<v1::Digest> JobManager::StoreVolume(RunningJob& job, ProbeVolume& volume,
+                                                   const VolumeMetadata& meta) {
   // Not written to the file; freed so the write holds no more memory than it needs.
-  std::vector<std::vector<float>>().swap(volume->radianceStdError);
-  std::vector<float>().swap(volume->autoWindowT);
-  std::filesystem::path tmp =
+  std::vector<std::vector<float>>().swap(volume.radianceStdError);
+  std::vector<float>().swap(volume.autoWindowT);
+  const std::filesystem::path tmp =
       blobs_->tmpDir() / absl::StrCat(job.name.substr(kNamePrefix.size()), ".vdb");
   // Gone however this ends (ImportFile consumes it when it succeeds).
   absl::Cleanup removeTmp = [&tmp] {
     std::error_code ec;
     std::filesystem::remove(tmp, ec);
   };
-  const VolumeMetadata meta = VolumeMetadataFor(*built);
-  auto write = [&]() -> absl::StatusOr<v1::Digest> {
-    PB_RETURN_IF_ERROR(backend_.writeVolume(tmp.string(), *volume, meta));
-    return blobs_->ImportFile(tmp);
-  };
-  // Known to the garbage collector from before the import until Finish has stored the job's
-  // end, which refers to the volume.
-  auto store = [&]() -> absl::StatusOr<v1::Digest> {
-    std::multiset<std::filesystem::file_time_type>::iterator started;
-    {
-      std::lock_guard lock(volumesMutex_);
-      started = importsUnderWay_.insert(std::filesystem::file_time_type::clock::now());
-    }
-    absl::StatusOr<v1::Digest> stored = write();
-    std::lock_guard lock(volumesMutex_);
-    importsUnderWay_.erase(started);
-    if (stored.ok()) volumesNotYetReferenced_.insert(stored->hash());
-    return stored;
-  };
-  // A full disk must not cost the bake (hours, on a farm): the volume stays in memory and its
-  // write is retried with backoff, the job RUNNING with progress.waiting saying why, until space
-  // returns, the job is cancelled, or the server stops (the job runs again after the restart,
-  // from its checkpoint). Any other error fails the job.
-  absl::StatusOr<v1::Digest> digest = store();
+  absl::StatusOr<v1::Digest> digest = WriteAndImportVolume(tmp, volume, meta);
   int tries = 1;
   for (auto backoff = kStoreRetryFirst; absl::IsResourceExhausted(digest.status());
        backoff = NextBackoff(backoff)) {
@@ -711,10 +718,10 @@ JobManager::Outcome JobManager::Execute(RunningJob& job) {
       backoff_.wait_for(lock, backoff, [&] { return stopping_ || job.cancel.load(); });
       if (job.cancel) {
         SetWaitingLocked(job, "");
-        return cancelled();
+        return absl::CancelledError("cancelled while waiting for disk space");
       }
     }
-    digest = store();
+    digest = WriteAndImportVolume(tmp, volume, meta);
     ++tries;
   }
   if (tries > 1) {
@@ -722,21 +729,25 @@ JobManager::Outcome JobManager::Execute(RunningJob& job) {
     SetWaitingLocked(job, "");
     if (digest.ok()) Logger("jobs")->info("{}: volume stored at try {}", job.name, tries);
   }
-  if (!digest.ok()) return fail(digest.status(), "store");
+  return digest;
+}
 
-  outcome.state = v1::BakeJob::SUCCEEDED;
-  v1::BakeJobResult& result = outcome.result;
-  *result.mutable_volume() = *digest;
-  v1::BakeStats* s = result.mutable_stats();
-  s->set_wall_seconds(stats.wallSeconds);
-  s->set_threads(stats.threads);
-  s->set_probes(stats.probes);
-  s->set_samples(stats.samples);
-  s->set_rays(stats.rays);
-  s->set_invalid_probes(stats.invalidProbes);
-  result.set_cached_result(false);
-  result.set_source_job(job.name);
-  return outcome;
+absl::StatusOr<v1::Digest> JobManager::WriteAndImportVolume(const std::filesystem::path& tmp,
+                                                            const ProbeVolume& volume,
+                                                            const VolumeMetadata& meta) {
+  std::multiset<std::filesystem::file_time_type>::iterator started;
+  {
+    std::lock_guard lock(volumesMutex_);
+    started = importsUnderWay_.insert(std::filesystem::file_time_type::clock::now());
+  }
+  absl::StatusOr<v1::Digest> stored = [&]() -> absl::StatusOr<v1::Digest> {
+    PB_RETURN_IF_ERROR(backend_.writeVolume(tmp.string(), volume, meta));
+    return blobs_->ImportFile(tmp);
+  }();
+  std::lock_guard lock(volumesMutex_);
+  importsUnderWay_.erase(started);
+  if (stored.ok()) volumesNotYetReferenced_.insert(stored->hash());
+  return stored;
 }
 
 void JobManager::OnProgress(RunningJob& job, const BakeProgress& progress) {
@@ -806,7 +817,7 @@ void JobManager::OnCheckpoint(RunningJob& job, const std::string& jobDigest,
 }
 
 void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
-  const bool final = IsFinal(outcome.state);
+  const bool final = runtime::IsFinal(outcome.state);
   v1::BakeJob record;
   {
     std::lock_guard lock(mutex_);

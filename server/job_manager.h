@@ -1,6 +1,6 @@
-// Bake jobs as long-running operations (SPEC 8): admission (validation, request ids, the result
-// cache, the queue bound), scheduling on the oneTBB worker pool, cancellation, progress fan-out to
-// watchers, checkpoints and recovery after a restart. Knows nothing of gRPC: errors are
+// Bake jobs as long-running operations (docs/service.md): admission (validation, request ids, the
+// result cache, the queue bound), scheduling on the oneTBB worker pool, cancellation, progress
+// fan-out to watchers, checkpoints and recovery after a restart. Knows nothing of gRPC: errors are
 // absl::Status (the service maps them to gRPC codes), watchers implement JobSubscriber.
 //
 // Durability: a job is committed to the JobStore before CreateJob returns; every state change is
@@ -23,6 +23,7 @@
 #include <optional>
 #include <set>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -33,9 +34,9 @@
 #include "absl/status/statusor.h"
 #include "probebake/job/limits.h"
 #include "probebake/v1/service.pb.h"
+#include "runtime/job_state.h"
 #include "server/bake_backend.h"
 #include "server/checkpoint.h"
-#include "server/job_state.h"
 #include "server/path_redactor.h"
 
 namespace probebake::server {
@@ -141,7 +142,49 @@ class JobManager {
     v1::BakeJobResult result;
   };
   void RunJob(const std::shared_ptr<RunningJob>& job);
+
+  // A run of a job, stage by stage: LoadJob, ReadResumePoint, BakeVolume, CountEveryAttempt,
+  // StoreVolume, then Succeeded, or Stopped at the first stage that returns an error. A stage
+  // returns CANCELLED only when job.cancel stopped it.
   Outcome Execute(RunningJob& job);
+  // The BakeJob built from the job's stored spec. The record's job digest becomes the one built
+  // (a baker changed since the job was accepted gives a new digest; its checkpoint, made for the
+  // old one, is then not resumed).
+  absl::StatusOr<BakeJob> LoadJob(RunningJob& job);
+  // The checkpoint of the job for `jobDigest`, when one is on disk and whole; sets
+  // job.probesResumed and job.carried from it. A checkpoint that cannot be used is logged and
+  // ignored: the bake starts over.
+  std::optional<Checkpoint> ReadResumePoint(RunningJob& job, const std::string& jobDigest);
+  // Bakes `built` with the backend, resuming from `checkpoint` when there is one (freed when the
+  // bake ends), reporting progress (OnProgress) and writing checkpoints (OnCheckpoint) as the
+  // config's intervals say.
+  absl::StatusOr<ProbeVolume> BakeVolume(RunningJob& job, const BakeJob& built,
+                                         std::optional<Checkpoint> checkpoint);
+  // Bake counts this attempt only: adds the work of earlier attempts (job.carried) to the
+  // volume's stats, so the volume's metadata and the result count every attempt (threads,
+  // probes and invalidProbes describe the volume as it is). Returns the stats.
+  BakeStats CountEveryAttempt(RunningJob& job, ProbeVolume& volume);
+  // Writes the volume (its planes the file does not hold are freed first) and imports it into the
+  // blob store; the blob's digest. A full disk must not cost the bake (hours, on a farm): on
+  // RESOURCE_EXHAUSTED the volume stays in memory and the write is retried with backoff, the job
+  // RUNNING with progress.waiting saying why, until space returns, the job is cancelled, or the
+  // server stops (the job runs again after the restart, from its checkpoint). Any other error is
+  // returned.
+  absl::StatusOr<v1::Digest> StoreVolume(RunningJob& job, ProbeVolume& volume,
+                                         const VolumeMetadata& meta);
+  // One write of the volume to `tmp` and its import. The garbage collector knows of the volume
+  // from before the import until Finish has stored the job's end, which refers to it
+  // (VolumesNotYetReferenced).
+  absl::StatusOr<v1::Digest> WriteAndImportVolume(const std::filesystem::path& tmp,
+                                                  const ProbeVolume& volume,
+                                                  const VolumeMetadata& meta);
+  // How a run stopped by `status` at `stage` ends: QUEUED when the server's shutdown cancelled it
+  // (it runs again after the restart), CANCELLED when a client did, FAILED otherwise (logged).
+  Outcome Stopped(RunningJob& job, const absl::Status& status, std::string_view stage);
+  // A SUCCEEDED run of job `name`: its volume blob and stats.
+  static Outcome Succeeded(const std::string& name, const v1::Digest& volume,
+                           const BakeStats& stats);
+
   void OnProgress(RunningJob& job, const BakeProgress& progress);
   void OnCheckpoint(RunningJob& job, const std::string& jobDigest, const ProbeVolume& volume,
                     const std::vector<uint8_t>& done);

@@ -1,6 +1,6 @@
 // The durable job store: an SQLite database (WAL journal, synchronous=FULL) under DATA, holding
 // every accepted job and the result cache. A write returns only once it is committed to disk, so
-// a job the server acknowledged survives a crash (SPEC 6, 8).
+// a job the server acknowledged survives a crash (docs/service.md).
 //
 // Rows: a job is its BakeJob record (every field but the spec, serialized) plus its JobSpec
 // (serialized, separately, since it can be large and most reads do not need it). The result cache

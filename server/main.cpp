@@ -1,4 +1,4 @@
-// probebake-server: the gRPC bake service (SPEC 8).
+// probebake-server: the gRPC bake service (docs/service.md).
 //
 //   probebake-server --listen ADDR --data-dir DIR [--threads N] [--max-concurrent-jobs N]
 //                    [--max-queued-jobs N] [--token-file F] [--tls-cert F --tls-key F]
@@ -19,9 +19,9 @@
 #include <CLI/CLI.hpp>
 
 #include "probebake/base/log.h"
+#include "runtime/files.h"
 #include "server/asset_check.h"
 #include "server/blob_store.h"
-#include "server/file_util.h"
 #include "server/server.h"
 
 namespace {
@@ -65,7 +65,7 @@ int main(int argc, char** argv) {
   app.add_option("--log-level", logLevel, "trace, debug, info, warn, error or off")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}))
       ->capture_default_str();
-  // Limits (SPEC 6), reported by GetCapabilities; 0 means no limit.
+  // Job limits (docs/job-format.md, "Errors"), reported by GetCapabilities; 0 means no limit.
   app.add_option("--max-probes", options.limits.maxProbes, "Probes per job")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
@@ -180,7 +180,8 @@ int main(int argc, char** argv) {
     return absl::IsInvalidArgument(server.status()) ? kExitUsage : kExitStartFailure;
   }
   if (!portFile.empty()) {
-    absl::Status written = srv::WriteFileAtomic(portFile, std::to_string((*server)->port()) + "\n");
+    absl::Status written =
+        probebake::runtime::WriteFileAtomic(portFile, std::to_string((*server)->port()) + "\n");
     if (!written.ok()) {
       Logger("server")->error("--port-file: {}", std::string(written.message()));
       return kExitStartFailure;

@@ -13,12 +13,13 @@
 #include <grpcpp/security/server_credentials.h>
 
 #include "absl/strings/str_cat.h"
+#include "probebake/base/io_error.h"
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
+#include "runtime/files.h"
 #include "server/auth.h"
 #include "server/blob_store.h"
 #include "server/disk_reserve.h"
-#include "server/file_util.h"
 #include "server/garbage_collector.h"
 #include "server/job_manager.h"
 #include "server/job_store.h"
@@ -32,7 +33,7 @@ namespace {
 absl::StatusOr<int> LockDataDir(const std::filesystem::path& dataDir) {
   std::filesystem::path lockPath = dataDir / "LOCK";
   int fd = ::open(lockPath.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-  if (fd < 0) return ErrnoError("open", lockPath, errno);
+  if (fd < 0) return IoError(errno, lockPath.string(), "open");
   if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
     ::close(fd);
     return absl::FailedPreconditionError(
@@ -71,8 +72,8 @@ absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
   if (!options.tlsCert.empty()) {
     grpc::SslServerCredentialsOptions ssl;
     grpc::SslServerCredentialsOptions::PemKeyCertPair pair;
-    absl::StatusOr<std::string> key = ReadWholeFile(options.tlsKey);
-    absl::StatusOr<std::string> cert = ReadWholeFile(options.tlsCert);
+    absl::StatusOr<std::string> key = runtime::ReadWholeFile(options.tlsKey);
+    absl::StatusOr<std::string> cert = runtime::ReadWholeFile(options.tlsCert);
     if (!key.ok())
       return absl::InvalidArgumentError(
           absl::StrCat("--tls-key: ", std::string(key.status().message())));

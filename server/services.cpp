@@ -7,6 +7,7 @@
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
 #include "probebake/base/version.h"
+#include "runtime/job_state.h"
 #include "server/blob_store.h"
 #include "server/job_manager.h"
 
@@ -481,7 +482,7 @@ class WatchStream final : public JobSubscriber {
     current_ = std::move(*pending_);
     pending_.reset();
     writing_ = true;
-    if (IsFinal(current_.state())) {
+    if (runtime::IsFinal(current_.state())) {
       finishing_ = true;
       reactor_->StartWriteAndFinish(&current_, grpc::WriteOptions(), grpc::Status::OK);
     } else {

@@ -175,9 +175,10 @@ TEST(EndToEnd, ServerBakeIsBitIdenticalToLocalBake) {
 }
 
 TEST(EndToEnd, AGridShardedAcrossALocalBakeAndAServerMergesIntoTheWholeBake) {
-  // SPEC 3: the sharding of a grid across machines does not change a result. The whole 3x3x2
-  // grid baked locally; its z = 0.5 layer baked locally too, its z = 2.5 layer on the server;
-  // `probebake merge` of the two gives the whole volume, bit for bit.
+  // Sharding a grid across machines does not change a result (docs/job-format.md, `grid`;
+  // docs/volume-format.md, "Merging sharded bakes"). The whole 3x3x2 grid baked locally; its
+  // z = 0.5 layer baked locally too, its z = 2.5 layer on the server; `probebake merge` of the two
+  // gives the whole volume, bit for bit.
   TempDir dir;
   auto whole = WriteJob(dir.path(), "whole.json", 3, 3, 2, 64);
   const std::string json = ReadFile(whole);

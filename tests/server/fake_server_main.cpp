@@ -7,7 +7,7 @@
 
 #include "fake_backend.h"
 #include "probebake/base/log.h"
-#include "server/file_util.h"
+#include "runtime/files.h"
 #include "server/server.h"
 
 int main(int argc, char** argv) {
@@ -46,7 +46,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   if (!portFile.empty() &&
-      !srv::WriteFileAtomic(portFile, std::to_string((*server)->port()) + "\n").ok())
+      !probebake::runtime::WriteFileAtomic(portFile, std::to_string((*server)->port()) + "\n").ok())
     return 1;
   int signal = 0;
   sigwait(&signals, &signal);

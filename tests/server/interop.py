@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Python interop test of probebake.v1 (SPEC 8), run by ctest with Debian's /usr/bin/python3.
+"""Python interop test of probebake.v1 (docs/service.md), run by ctest with Debian's /usr/bin/python3.
 
 Starts a server on a free loopback port with its own data folder and a token, then, as a
 Python gRPC client with stubs generated from the .proto files at build time: checks health

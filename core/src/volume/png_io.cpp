@@ -6,8 +6,9 @@
 #include <csetjmp>
 #include <cstdio>
 
-#include "atomic_file.h"
+#include "probebake/base/atomic_file.h"
 #include "probebake/base/check.h"
+#include "probebake/base/io_error.h"
 
 namespace probebake::volume_internal {
 namespace {

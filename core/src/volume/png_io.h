@@ -10,7 +10,7 @@
 namespace probebake::volume_internal {
 
 // Writes a width x height 8-bit RGB image (rows top to bottom, 3 bytes per pixel) to `path`,
-// atomically (see atomic_file.h). Errors name the path.
+// atomically (probebake/base/atomic_file.h). Errors name the path.
 absl::Status WritePngRgb8(const std::string& path, int width, int height,
                           const std::vector<uint8_t>& rgb);
 

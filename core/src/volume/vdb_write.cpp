@@ -14,7 +14,8 @@
 #include <openvdb/io/io.h>
 #include <openvdb/openvdb.h>
 
-#include "atomic_file.h"
+#include "probebake/base/atomic_file.h"
+#include "probebake/base/io_error.h"
 #include "probebake/base/log.h"
 #include "probebake/base/version.h"
 #include "probebake/volume/vdb_io.h"
@@ -277,7 +278,7 @@ absl::Status WriteProbeVolume(const std::string& path, ProbeVolume&& volume,
 }
 
 absl::Status CheckOutputWritable(const std::string& path) {
-  PB_ASSIGN_OR_RETURN(volume_internal::AtomicFile probe, volume_internal::AtomicFile::Create(path));
+  PB_ASSIGN_OR_RETURN(AtomicFile probe, AtomicFile::Create(path));
   probe.Abort();
   return absl::OkStatus();
 }

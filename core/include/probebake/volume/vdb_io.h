@@ -88,8 +88,8 @@ VolumeMetadata VolumeMetadataFor(const BakeJob& job);
 // Writes `volume` to `path` as described above. Errors: INVALID_ARGUMENT when the volume is
 // inconsistent (plane sizes, order > kMaxVolumeShOrder, non-positive spacing, stats that the
 // stats JSON cannot hold exactly), naming the field;
-// NOT_FOUND / PERMISSION_DENIED / RESOURCE_EXHAUSTED (disk full) / INTERNAL for I/O failures,
-// with `path` in the message. Thread safe for distinct paths.
+// NOT_FOUND / RESOURCE_EXHAUSTED (disk full) / INTERNAL for I/O failures
+// (probebake/base/io_error.h), with `path` in the message. Thread safe for distinct paths.
 //
 // Memory: grids are built, written and freed one at a time, so the extra memory while writing is
 // about one grid (one coefficient plane), not a copy of the volume. Measured on a dense 128^3 L2

@@ -1,11 +1,15 @@
-// Job states and sizes shared by the server and the client.
+// Job states and sizes the server and the CLI agree on.
+//
+// The state is the wire enum v1::BakeJob::State itself (service.pb.h, generated message code from
+// probebake_proto: libprotobuf, no gRPC): a C++ mirror of it would be a second list to keep in
+// step with service.proto.
 #pragma once
 
 #include <cstdint>
 
 #include "probebake/v1/service.pb.h"
 
-namespace probebake::server {
+namespace probebake::runtime {
 
 // SUCCEEDED, FAILED and CANCELLED: the job will not change any more.
 inline bool IsFinal(v1::BakeJob::State state) {
@@ -18,4 +22,4 @@ inline bool IsFinal(v1::BakeJob::State state) {
 // the CLI checks before uploading.
 inline constexpr int64_t kJobRecordReserve = 65536;
 
-}  // namespace probebake::server
+}  // namespace probebake::runtime

@@ -1,4 +1,4 @@
-#include "atomic_file.h"
+#include "probebake/base/atomic_file.h"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -10,7 +10,9 @@
 #include <cstring>
 #include <utility>
 
-namespace probebake::volume_internal {
+#include "probebake/base/io_error.h"
+
+namespace probebake {
 namespace {
 
 struct PathParts {
@@ -29,20 +31,7 @@ std::atomic<uint64_t> g_tempCounter{0};
 
 }  // namespace
 
-absl::Status IoError(int error_number, const std::string& path, const std::string& what) {
-  std::string message = path + ": " + what + ": " + std::strerror(error_number);
-  absl::StatusCode code = absl::ErrnoToStatusCode(error_number);
-  // A full disk or a file-size limit is a resource problem, whatever errno's default mapping.
-  if (error_number == ENOSPC || error_number == EDQUOT || error_number == EFBIG) {
-    code = absl::StatusCode::kResourceExhausted;
-  }
-  if (code == absl::StatusCode::kOk || code == absl::StatusCode::kUnknown) {
-    code = absl::StatusCode::kInternal;
-  }
-  return absl::Status(code, message);
-}
-
-absl::StatusOr<AtomicFile> AtomicFile::Create(const std::string& path) {
+absl::StatusOr<AtomicFile> AtomicFile::Create(const std::string& path, Temp temp) {
   if (path.empty() || path.back() == '/') {
     return absl::InvalidArgumentError("'" + path + "': not a file path");
   }
@@ -51,12 +40,18 @@ absl::StatusOr<AtomicFile> AtomicFile::Create(const std::string& path) {
   if (::stat(path.c_str(), &info) == 0 && S_ISDIR(info.st_mode))
     return absl::InvalidArgumentError(path + ": is a directory, not a file path");
   const auto [dir, name] = SplitPath(path);
+  if (temp == Temp::kBesidePath) {
+    std::string beside = path + ".tmp";
+    const int fd = ::open(beside.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (fd < 0) return IoError(errno, path, "cannot create " + beside);
+    return AtomicFile(path, std::move(beside), fd);
+  }
   for (int attempt = 0; attempt < 100; ++attempt) {
     const uint64_t n = g_tempCounter.fetch_add(1, std::memory_order_relaxed);
-    std::string temp = (dir == "/" ? std::string() : dir) + "/." + name + "." +
-                       std::to_string(::getpid()) + "." + std::to_string(n) + ".tmp";
-    const int fd = ::open(temp.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-    if (fd >= 0) return AtomicFile(path, std::move(temp), fd);
+    std::string unique = (dir == "/" ? std::string() : dir) + "/." + name + "." +
+                         std::to_string(::getpid()) + "." + std::to_string(n) + ".tmp";
+    const int fd = ::open(unique.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    if (fd >= 0) return AtomicFile(path, std::move(unique), fd);
     if (errno != EEXIST) return IoError(errno, path, "cannot create a temporary file in " + dir);
   }
   return absl::InternalError(path + ": cannot find a free temporary file name in " + dir);
@@ -101,15 +96,18 @@ absl::Status AtomicFile::Commit() {
     return IoError(e, path_, "cannot rename " + tempPath_ + " to it");
   }
   done_ = true;
-  // The rename is durable once the directory entry is: fsync the directory.
-  const std::string dir = SplitPath(path_).dir;
-  const int dirFd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
-  if (dirFd < 0) return IoError(errno, path_, "cannot open directory " + dir + " to fsync it");
-  const int synced = ::fsync(dirFd);
+  // The rename is durable once the directory entry is.
+  return FsyncDirectory(SplitPath(path_).dir);
+}
+
+absl::Status FsyncDirectory(const std::string& dir) {
+  const int fd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (fd < 0) return IoError(errno, dir, "cannot open the directory to fsync it");
+  const int synced = ::fsync(fd);
   const int e = errno;
-  ::close(dirFd);
-  if (synced != 0) return IoError(e, path_, "fsync of directory " + dir + " failed");
+  ::close(fd);
+  if (synced != 0) return IoError(e, dir, "fsync of the directory failed");
   return absl::OkStatus();
 }
 
-}  // namespace probebake::volume_internal
+}  // namespace probebake

@@ -1,0 +1,119 @@
+#include "runtime/asset_check.h"
+
+#include <sys/wait.h>
+
+#include <cstdio>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "probebake/base/log.h"
+#include "probebake/job/job.h"
+#include "probebake/job/job_json.h"
+#include "runtime/subprocess.h"
+
+namespace probebake::runtime {
+namespace {
+
+// Announces each asset on stdout before it is read, so that the parent can name the file a crash
+// happened in.
+class AnnouncingAssetSource final : public AssetSource {
+ public:
+  explicit AnnouncingAssetSource(const AssetSource& inner) : inner_(inner) {}
+  absl::StatusOr<std::string> ReadFile(const std::string& relativePath,
+                                       const std::string& fieldPath) const override {
+    Announce(fieldPath);
+    return inner_.ReadFile(relativePath, fieldPath);
+  }
+  absl::StatusOr<std::string> ReadBlob(const v1::Digest& digest,
+                                       const std::string& fieldPath) const override {
+    Announce(fieldPath);
+    return inner_.ReadBlob(digest, fieldPath);
+  }
+
+ private:
+  static void Announce(const std::string& fieldPath) {
+    std::printf("asset %s\n", fieldPath.c_str());
+    std::fflush(stdout);
+  }
+
+  const AssetSource& inner_;
+};
+
+// The child's report: the assets it started and its final status, if it got that far.
+struct Report {
+  std::string lastAsset;
+  bool finished = false;
+  absl::Status status;
+};
+
+Report ParseReport(const std::string& out) {
+  Report report;
+  size_t at = 0;
+  while (at < out.size()) {
+    const size_t end = out.find('\n', at);
+    const std::string line =
+        out.substr(at, end == std::string::npos ? std::string::npos : end - at);
+    if (line.rfind("asset ", 0) == 0) {
+      report.lastAsset = line.substr(6);
+    } else if (line.rfind("status ", 0) == 0 && end != std::string::npos) {
+      int code = 0;
+      if (absl::SimpleAtoi(line.substr(7), &code)) {
+        report.finished = true;
+        report.status = absl::Status(static_cast<absl::StatusCode>(code), out.substr(end + 1));
+      }
+      break;
+    }
+    if (end == std::string::npos) break;
+    at = end + 1;
+  }
+  return report;
+}
+
+}  // namespace
+
+absl::Status RunAssetCheck(std::vector<std::string> argv, std::chrono::seconds timeout) {
+  const auto log = Logger("assets");
+  absl::StatusOr<ChildExit> child = RunChild(std::move(argv), timeout, "asset check");
+  if (!child.ok()) return child.status();
+  const Report parsed = ParseReport(child->out);
+  const std::string field = parsed.lastAsset.empty() ? "scene" : parsed.lastAsset;
+  if (child->timedOut) {
+    log->warn("asset check of {} ran past {} s: killed", field, timeout.count());
+    return absl::InvalidArgumentError(
+        absl::StrCat(field, ": importing this file took longer than the limit of ", timeout.count(),
+                     " s (the file is malformed or too large)"));
+  }
+  const int waitStatus = child->waitStatus;
+  if (WIFSIGNALED(waitStatus)) {
+    log->warn("asset check of {} crashed (signal {})", field, WTERMSIG(waitStatus));
+    return absl::InvalidArgumentError(
+        absl::StrCat(field, ": the importer crashed on this file (signal ", WTERMSIG(waitStatus),
+                     "); the file is malformed"));
+  }
+  if (!parsed.finished) {
+    return absl::InternalError(absl::StrCat("asset check: the checker exited with code ",
+                                            WIFEXITED(waitStatus) ? WEXITSTATUS(waitStatus) : -1,
+                                            " without a report"));
+  }
+  return parsed.status;
+}
+
+int ReportAssetCheck(const absl::Status& status) {
+  std::printf("status %d\n%s", int(status.code()), std::string(status.message()).c_str());
+  std::fflush(stdout);
+  return 0;
+}
+
+int ReportJobAssets(const v1::JobSpec& spec, const AssetSource& assets, const JobLimits& limits) {
+  const AnnouncingAssetSource announcing(assets);
+  return ReportAssetCheck(BuildBakeJob(spec, announcing, limits).status());
+}
+
+int RunLocalAssetCheckChild(const std::string& jobPath, const JobLimits& limits) {
+  absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
+  if (!spec.ok()) return ReportAssetCheck(spec.status());
+  const LocalAssetSource files(JobFileDir(jobPath), "", limits.maxAssetBytes);
+  return ReportJobAssets(*spec, files, limits);
+}
+
+}  // namespace probebake::runtime
