@@ -166,7 +166,7 @@ TEST(ClosedForm, OccludedDeltaLightContributesNothing) {
 
 TEST(ClosedForm, RectLightMatchesQuadrature) {
   // A one-sided rectangle above the probe, facing it, near enough to be sampled by solid angle
-  // (area 1.5 over a squared distance of 0.70 to its centre, above light_set.cpp's threshold of
+  // (area 1.5 over a squared distance of 0.70 to its centre, above area_emitters.cpp's threshold of
   // 1), against a 64 x 64 Gauss-Legendre integration of Y(w) cos / r^2 over its area.
   const Vec3d L{4, 3, 2};
   const Vec3d corner{-0.3, -0.6, 0.8}, e1{0, 1.5, 0}, e2{1, 0, 0};  // e1 x e2 = -z: faces down
