@@ -210,6 +210,14 @@ std::string AllTasks(const std::string& id) {
                        "\n");
 }
 
+// AllTasks of a job baked by its first array alone, each shard run once.
+std::string OneArrayEachShardOnce(const std::string& id) {
+  std::string expected;
+  for (int i = 0; i < kShards; ++i)
+    absl::StrAppend(&expected, i ? "\n" : "", "probebake-", id, "-0|", i, "|COMPLETED");
+  return expected;
+}
+
 TEST_F(SlurmCluster, FourShardsBakeBitIdenticallyToALocalBake) {
   TempDir dir;
   SlurmServer server(dir.path(), Env());
@@ -222,11 +230,7 @@ TEST_F(SlurmCluster, FourShardsBakeBitIdenticallyToALocalBake) {
   std::printf("submit -o through Slurm, %d shards: %.2f s\n", kShards, SecondsSince(start));
   ExpectSameVolume(LocalVolume(), out);
   const std::string id = JobName(submitted).substr(9);
-  // One array, each shard run once.
-  std::string expected;
-  for (int i = 0; i < kShards; ++i)
-    absl::StrAppend(&expected, i ? "\n" : "", "probebake-", id, "-0|", i, "|COMPLETED");
-  EXPECT_EQ(AllTasks(id), expected);
+  EXPECT_EQ(AllTasks(id), OneArrayEachShardOnce(id));
   // Its shared folder is gone with the job's end.
   EXPECT_FALSE(std::filesystem::exists(dir.path() / "shared" / id)) << server.log();
   server.process().Signal(SIGTERM);
@@ -309,11 +313,8 @@ TEST_F(SlurmCluster, AServerKilledMidArrayFinishesTheJobOnceAfterItsRestart) {
       std::string::npos);
   ExpectSameVolume(LocalVolume(), out);
   EXPECT_NE(restarted.log().find("re-attached"), std::string::npos) << restarted.log();
-  // The one array of the first run, each shard run once: nothing was submitted again.
-  std::string expected;
-  for (int i = 0; i < kShards; ++i)
-    absl::StrAppend(&expected, i ? "\n" : "", "probebake-", id, "-0|", i, "|COMPLETED");
-  EXPECT_EQ(AllTasks(id), expected);
+  // The one array of the first run: nothing was submitted again.
+  EXPECT_EQ(AllTasks(id), OneArrayEachShardOnce(id));
   // One job, succeeded, listed once.
   const std::string listed = Cli({"list", "--server", restarted.address()});
   EXPECT_EQ(listed.find(name), listed.rfind(name)) << listed;
