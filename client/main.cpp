@@ -1,6 +1,9 @@
 // probebake: bake locally, inspect volumes, and drive a probebake-server (docs/service.md).
 //
 //   probebake bake JOB.json -o OUT.vdb [--threads N] [--json]
+//                  [--shard I/N [--blob-dir D] [--progress-file F] [--expect-job-digest D]]
+//   probebake plan JOB.json --shards N [--json]
+//   probebake merge PART.vdb... -o OUT.vdb
 //   probebake inspect OUT.vdb [--json] [--slice AXIS=VALUE -o PNG]
 //   probebake submit JOB.json [--wait] [-o OUT.vdb] [--skip-cache] [--request-id ID]
 //   probebake watch NAME | status NAME | fetch NAME -o OUT.vdb | cancel NAME | delete NAME | list
@@ -11,6 +14,7 @@
 // 3 the job failed or was cancelled; 4 could not reach or authenticate to the server; 1 other
 // failures.
 #include <signal.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -40,6 +44,8 @@
 #include "runtime/asset_check.h"
 #include "runtime/files.h"
 #include "runtime/job_state.h"
+#include "runtime/shard_plan.h"
+#include "runtime/shard_progress.h"
 
 namespace probebake::client {
 namespace {
@@ -154,25 +160,120 @@ std::string SelfExecutable() {
   return self.string();
 }
 
-int RunBake(const std::string& jobPath, const std::string& out, int threads, bool json) {
+// What a bake of one shard of a sharded bake (docs/cluster.md) is told besides the job file.
+struct ShardFlags {
+  std::string shard;            // "I/N"; empty: the whole grid
+  std::string blobDir;          // blobs the job refers to, as <blobDir>/<sha256>
+  std::string progressFile;     // rewritten with the shard's progress (runtime/shard_progress.h)
+  std::string expectJobDigest;  // refuse to bake when the job's digest differs
+};
+
+// The job of `jobPath`, its assets read from files beside it and, with a blob folder, from
+// blobs there. Error lines start with the path.
+absl::StatusOr<BakeJob> LoadJob(const std::string& jobPath, const std::string& blobDir) {
+  if (blobDir.empty()) return LoadBakeJob(jobPath, JobLimits());
+  absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
+  if (!spec.ok()) return spec.status();
+  const JobLimits limits;
+  absl::StatusOr<BakeJob> job = BuildBakeJob(
+      *spec, LocalAssetSource(JobFileDir(jobPath), blobDir, limits.maxAssetBytes), limits);
+  if (job.ok()) return job;
+  std::string message;
+  for (absl::string_view line : absl::StrSplit(job.status().message(), '\n'))
+    absl::StrAppend(&message, message.empty() ? "" : "\n", jobPath, ": ", line);
+  return absl::Status(job.status().code(), message);
+}
+
+// Writes the shard's progress file, at most once a second but for stage changes.
+class ShardProgressFile {
+ public:
+  ShardProgressFile(const std::string& path, int shard, int shards) : path_(path) {
+    progress_.shard = shard;
+    progress_.shards = shards;
+    progress_.pid = getpid();
+    char host[256] = {};
+    gethostname(host, sizeof host - 1);
+    progress_.host = host;
+  }
+  void Stage(const std::string& stage) {
+    progress_.stage = stage;
+    Write();
+  }
+  void Update(const BakeProgress& p) {
+    progress_.probesDone = p.probesDone;
+    progress_.probesTotal = p.probesTotal;
+    progress_.samples = p.samples;
+    progress_.rays = p.rays;
+    progress_.elapsedSeconds = p.elapsedSeconds;
+    const auto now = std::chrono::steady_clock::now();
+    if (p.probesDone < p.probesTotal && now - written_ < std::chrono::seconds(1)) return;
+    Write();
+  }
+
+ private:
+  void Write() {
+    if (path_.empty()) return;
+    written_ = std::chrono::steady_clock::now();
+    // A progress file that cannot be written costs the display, not the bake.
+    if (absl::Status w = runtime::WriteFileAtomic(path_, runtime::ShardProgressJson(progress_));
+        !w.ok())
+      Logger("bake")->warn("--progress-file: {}", std::string(w.message()));
+  }
+  std::string path_;
+  runtime::ShardProgress progress_;
+  std::chrono::steady_clock::time_point written_{};
+};
+
+int RunBake(const std::string& jobPath, const std::string& out, int threads, bool json,
+            const ShardFlags& shardFlags) {
+  int shard = 0, shards = 0;
+  if (!shardFlags.shard.empty()) {
+    if (absl::Status parsed = runtime::ParseShardSpec(shardFlags.shard, "--shard", &shard, &shards);
+        !parsed.ok())
+      return Fail(kExitUsage, std::string(parsed.message()));
+  }
+  ShardProgressFile progressFile(shardFlags.progressFile, shard, std::max(shards, 1));
+  progressFile.Stage("planning");
   if (absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
       spec.ok() && !ListFileReferences(*spec).empty()) {
     const absl::Status checked =
         runtime::RunAssetCheck({SelfExecutable(), "check-assets", jobPath}, kAssetCheckTimeout);
     if (!checked.ok()) return Fail(checked, jobPath);
   }
-  absl::StatusOr<BakeJob> job = LoadBakeJob(jobPath, JobLimits());
+  absl::StatusOr<BakeJob> job = LoadJob(jobPath, shardFlags.blobDir);
   if (!job.ok()) return Fail(kExitUsage, std::string(job.status().message()));
+  if (!shardFlags.expectJobDigest.empty() && job->jobDigest != shardFlags.expectJobDigest)
+    return Fail(kExitUsage,
+                absl::StrCat(jobPath, ": the job digest is ", job->jobDigest, ", not ",
+                             shardFlags.expectJobDigest,
+                             " (--expect-job-digest): this probebake bakes other bits than the "
+                             "one that planned the job; install the same version everywhere"));
   if (const int code = CheckOutput(out); code != kExitOk) return code;
   // Ctrl-C cancels the bake cleanly (exit 3) instead of killing it.
   struct sigaction action = {};
   action.sa_handler = OnInterrupt;
   sigaction(SIGINT, &action, nullptr);
+  if (shards > 0) {
+    absl::StatusOr<runtime::ShardPlan> plan = runtime::PlanShards(*job, shards, threads);
+    if (!plan.ok())
+      return Fail(kExitUsage,
+                  absl::StrCat("--shard ", shardFlags.shard, ": ", plan.status().message()));
+    const runtime::ShardBox& box = plan->shards[size_t(shard)];
+    job->grid = runtime::ShardGrid(job->grid, box);
+    Logger("bake")->info(
+        "shard {} of {}: grid points ({}, {}, {}) + ({}, {}, {}), {} probes expected", shard,
+        shards, box.first[0], box.first[1], box.first[2], box.counts[0], box.counts[1],
+        box.counts[2], box.expectedProbes);
+  }
+  progressFile.Stage("baking");
   ProgressView view(ProgressView::Choose(json));
   BakeOptions options;
   options.threads = threads;
   options.cancel = &gInterrupted;
-  options.progress = [&](const BakeProgress& p) { view.Update(p); };
+  options.progress = [&](const BakeProgress& p) {
+    view.Update(p);
+    progressFile.Update(p);
+  };
   absl::StatusOr<ProbeVolume> volume = Bake(*job, options);
   view.Done();
   if (!volume.ok()) {
@@ -181,8 +282,10 @@ int RunBake(const std::string& jobPath, const std::string& out, int threads, boo
                 absl::StrCat(jobPath, ": bake failed: ", std::string(volume.status().message())));
   }
   BakeStats stats = volume->stats;
+  progressFile.Stage("writing");
   absl::Status written = WriteProbeVolume(out, std::move(*volume), VolumeMetadataFor(*job));
   if (!written.ok()) return Fail(kExitUsage, std::string(written.message()));
+  progressFile.Stage("done");
   if (json) {
     std::printf(
         "{\"output\":%s,\"stats\":{\"wallSeconds\":%.6g,\"threads\":%d,\"probes\":%lld,"
@@ -195,6 +298,21 @@ int RunBake(const std::string& jobPath, const std::string& out, int threads, boo
                  out.c_str(), (long long)stats.probes, (long long)stats.invalidProbes,
                  (long long)stats.samples, (long long)stats.rays, stats.wallSeconds);
   }
+  return kExitOk;
+}
+
+// ---- plan ----
+
+// Prints how `probebake bake --shard I/N` splits the job's grid (runtime/shard_plan.h).
+int RunPlan(const std::string& jobPath, int shards, int threads, bool json) {
+  absl::StatusOr<BakeJob> job = LoadBakeJob(jobPath, JobLimits());
+  if (!job.ok()) return Fail(kExitUsage, std::string(job.status().message()));
+  absl::StatusOr<runtime::ShardPlan> plan = runtime::PlanShards(*job, shards, threads);
+  if (!plan.ok()) return Fail(kExitUsage, absl::StrCat("--", plan.status().message()));
+  if (json)
+    std::printf("%s\n", runtime::ShardPlanJson(*plan, job->grid).c_str());
+  else
+    std::printf("%s", runtime::FormatShardPlan(*plan, job->grid).c_str());
   return kExitOk;
 }
 
@@ -438,6 +556,7 @@ int Main(int argc, char** argv) {
       "Documentation, in the docs/ folder of the probebake repository:\n"
       "  job-format.md      the job file\n"
       "  volume-format.md   the .vdb a bake writes (inspect, merge)\n"
+      "  cluster.md         sharded bakes on a farm (plan, bake --shard, merge)\n"
       "  service.md         the server, and the commands that drive it (submit ... list)");
   app.require_subcommand(1);
   std::string logLevel = "warn";
@@ -455,6 +574,26 @@ int Main(int argc, char** argv) {
       ->required();
   bake->add_option("--threads", threads, "Worker threads (0: all)")->check(CLI::NonNegativeNumber);
   bake->add_flag("--json", json, "Progress and result as JSON lines on stdout");
+  ShardFlags shardFlags;
+  bake->add_option("--shard", shardFlags.shard,
+                   "I/N: bake only shard I (from 0) of the grid split in N (probebake plan; "
+                   "join the parts with probebake merge)");
+  bake->add_option("--blob-dir", shardFlags.blobDir,
+                   "Folder of the blobs the job refers to, each named by its sha256");
+  bake->add_option("--progress-file", shardFlags.progressFile,
+                   "Keep this file rewritten with the bake's progress (JSON, docs/cluster.md)");
+  bake->add_option("--expect-job-digest", shardFlags.expectJobDigest,
+                   "Refuse to bake unless the job's digest is this one (a cluster's shards and "
+                   "its planner must be the same baker)");
+
+  int shardCount = 0;
+  CLI::App* plan =
+      app.add_subcommand("plan", "Show how JOB.json's grid splits into shards (bake --shard)");
+  plan->add_option("job", jobPath, "Job file (docs/job-format.md)")->required();
+  plan->add_option("--shards", shardCount, "Shards")->required()->check(CLI::PositiveNumber);
+  plan->add_option("--threads", threads, "Worker threads of the pre-pass (0: all)")
+      ->check(CLI::NonNegativeNumber);
+  plan->add_flag("--json", json, "One JSON object on stdout");
 
   // The child of the local bake's asset check (runtime/asset_check.h); not for people.
   CLI::App* checkAssets = app.add_subcommand("check-assets");
@@ -513,7 +652,8 @@ int Main(int argc, char** argv) {
     SetLogLevel(spdlog::level::warn);  // the bake that spawned it logs what matters
     return runtime::RunLocalAssetCheckChild(jobPath, JobLimits());
   }
-  if (*bake) return RunBake(jobPath, out, threads, json);
+  if (*bake) return RunBake(jobPath, out, threads, json, shardFlags);
+  if (*plan) return RunPlan(jobPath, shardCount, threads, json);
   if (*inspect) return RunInspect(path, json, slice, out);
   if (*merge) return RunMerge(parts, out);
   if (*submit) return RunSubmit(flags, jobPath, wait, out, skipCache, requestId);

@@ -18,7 +18,7 @@ extern char** environ;
 namespace probebake::runtime {
 
 absl::StatusOr<ChildExit> RunChild(std::vector<std::string> argv, std::chrono::seconds timeout,
-                                   const std::string& what) {
+                                   const std::string& what, bool stderrToOut) {
   int out[2];
   if (pipe2(out, O_CLOEXEC) != 0)
     return absl::InternalError(absl::StrCat(what, ": pipe: ", std::strerror(errno)));
@@ -28,6 +28,7 @@ absl::StatusOr<ChildExit> RunChild(std::vector<std::string> argv, std::chrono::s
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_adddup2(&actions, out[1], STDOUT_FILENO);
+  if (stderrToOut) posix_spawn_file_actions_adddup2(&actions, out[1], STDERR_FILENO);
   posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
   posix_spawnattr_t attributes;
   posix_spawnattr_init(&attributes);

@@ -19,11 +19,12 @@ struct ChildExit {
 };
 
 // Runs `argv` (argv[0] a path, not searched in $PATH) with stdin from /dev/null, stdout piped
-// back, stderr inherited, and no signal blocked (the server blocks SIGTERM and SIGINT in every
-// thread for its sigwait; the child must not inherit that). Waits for it to close stdout and
-// exit, killing it once `timeout` has passed. Errors: INTERNAL "<what>: cannot run <argv[0]>:
+// back, stderr inherited (or piped back with stdout when `stderrToOut`), and no signal blocked (the
+// server blocks SIGTERM and SIGINT in every thread for its sigwait; the child must not inherit
+// that). Waits for it to close stdout and exit, killing it once `timeout` has passed. Errors:
+// INTERNAL "<what>: cannot run <argv[0]>:
 // ..." when the child could not be started; `what` names the caller's purpose.
 absl::StatusOr<ChildExit> RunChild(std::vector<std::string> argv, std::chrono::seconds timeout,
-                                   const std::string& what);
+                                   const std::string& what, bool stderrToOut = false);
 
 }  // namespace probebake::runtime

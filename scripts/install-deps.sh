@@ -17,6 +17,10 @@ PACKAGES=(
   libgtest-dev libbenchmark-dev
   # Python-side interop tests (Debian's interpreter: /usr/bin/python3)
   python3 python3-grpcio python3-protobuf python3-numpy python3-openvdb
+  # the Slurm backend and its end-to-end test (a one-node cluster: scripts/slurm-cluster.sh)
+  slurm-wlm munge
+  # the offline check of the Kubernetes manifests (deploy/k8s) against the API's schema
+  python3-kubernetes python3-yaml
 )
 
 missing=()

@@ -439,6 +439,13 @@ absl::StatusOr<v1::BakeJob> JobManager::CancelJob(const std::string& name) {
 
 absl::Status JobManager::DeleteJob(const std::string& name) {
   PB_RETURN_IF_ERROR(CheckName(name).status());
+  PB_RETURN_IF_ERROR(ForgetJob(name));
+  // A job deleted before its end was released (a crash between the two) releases now.
+  if (backend_.release) backend_.release(name);
+  return absl::OkStatus();
+}
+
+absl::Status JobManager::ForgetJob(const std::string& name) {
   std::lock_guard lock(mutex_);
   // A job whose end is stored (and announced) is finished, though its worker is still leaving.
   if (auto running = running_.find(name);
@@ -634,7 +641,8 @@ absl::StatusOr<BakeJob> JobManager::LoadJob(RunningJob& job) {
   if (!spec.ok()) return spec.status();
   if (!*spec) return absl::InternalError("the job's spec is gone from the store");
   if (job.cancel) return absl::CancelledError("cancelled before the job was built");
-  absl::StatusOr<BakeJob> built = backend_.build(**spec);
+  job.spec = std::move(**spec);
+  absl::StatusOr<BakeJob> built = backend_.build(job.spec);
   if (!built.ok()) return built.status();
   std::lock_guard lock(mutex_);
   if (job.record.job_digest() != built->jobDigest) {
@@ -682,7 +690,19 @@ absl::StatusOr<ProbeVolume> JobManager::BakeVolume(RunningJob& job, const BakeJo
     options.resumeDone = &checkpoint->done;
   }
   if (job.cancel) return absl::CancelledError("cancelled before the bake started");
-  return backend_.bake(built, options);
+  BakeRun run;
+  run.jobName = job.name;
+  run.spec = &job.spec;
+  {
+    std::lock_guard lock(mutex_);
+    run.attempt = job.record.attempts();
+  }
+  run.cancelledByClient = [&job] { return job.reason.load() == int(CancelReason::kUser); };
+  run.setWaiting = [this, &job](const std::string& why) {
+    std::lock_guard lock(mutex_);
+    SetWaitingLocked(job, why);
+  };
+  return backend_.bake(run, built, options);
 }
 
 BakeStats JobManager::CountEveryAttempt(RunningJob& job, ProbeVolume& volume) {
@@ -905,6 +925,7 @@ void JobManager::Finish(RunningJob& job, const Outcome& outcome) {
   if (final && stored) {
     std::error_code ec;
     std::filesystem::remove(CheckpointPath(job.name), ec);
+    if (backend_.release) backend_.release(job.name);
   }
   // Last: once running_ is empty, Shutdown may tear the manager down.
   std::lock_guard lock(mutex_);

@@ -128,6 +128,7 @@ class JobManager {
     v1::BakeJob record;  // guarded by mutex_
     std::atomic<bool> cancel{false};
     std::atomic<int> reason{int(CancelReason::kNone)};
+    v1::JobSpec spec;  // as stored, read by LoadJob
     int64_t probesResumed = 0;
     // Work of earlier attempts (from the checkpoint resumed), and this attempt's as of its last
     // progress report (Bake reports progress right before every checkpoint); mutex_ guards both.
@@ -194,6 +195,9 @@ class JobManager {
   // Commits the record of a job leaving RUNNING (and its cache entry) and announces it.
   void Finish(RunningJob& job, const Outcome& outcome);
 
+  // DeleteJob but for the backend's release: the record, queue entry, checkpoint and watchers go
+  // (takes mutex_).
+  absl::Status ForgetJob(const std::string& name);
   absl::Status ValidateForServer(const v1::JobSpec& spec) const;
   absl::StatusOr<std::string> CheckName(const std::string& name) const;
   // DB record overlaid with live progress; mutex_ held.

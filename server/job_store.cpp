@@ -26,6 +26,10 @@ CREATE TABLE IF NOT EXISTS result_cache (
   job_digest TEXT PRIMARY KEY,
   result BLOB NOT NULL
 );
+CREATE TABLE IF NOT EXISTS cluster_runs (
+  name TEXT PRIMARY KEY,
+  run BLOB NOT NULL
+);
 )sql";
 
 }  // namespace
@@ -401,6 +405,47 @@ absl::Status JobStore::DeleteCached(const std::string& jobDigest) {
     s.BindText(1, jobDigest);
     return s.Step().status();
   });
+}
+
+absl::StatusOr<std::optional<std::string>> JobStore::GetClusterRun(const std::string& name) {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT run FROM cluster_runs WHERE name = ?");
+  PB_RETURN_IF_ERROR(s.status());
+  s.BindText(1, name);
+  PB_ASSIGN_OR_RETURN(bool row, s.Step());
+  if (!row) return std::optional<std::string>();
+  return std::optional<std::string>(s.Blob(0));
+}
+
+absl::Status JobStore::PutClusterRun(const std::string& name, const std::string& run) {
+  return Writing([&]() -> absl::Status {
+    Statement s(db_, "INSERT OR REPLACE INTO cluster_runs(name, run) VALUES(?, ?)");
+    PB_RETURN_IF_ERROR(s.status());
+    s.BindText(1, name);
+    s.Bind(2, run);
+    return s.Step().status();
+  });
+}
+
+absl::Status JobStore::DeleteClusterRun(const std::string& name) {
+  return Writing([&]() -> absl::Status {
+    Statement s(db_, "DELETE FROM cluster_runs WHERE name = ?");
+    PB_RETURN_IF_ERROR(s.status());
+    s.BindText(1, name);
+    return s.Step().status();
+  });
+}
+
+absl::StatusOr<std::vector<std::string>> JobStore::ListClusterRuns() {
+  std::lock_guard lock(mutex_);
+  Statement s(db_, "SELECT name FROM cluster_runs ORDER BY name");
+  PB_RETURN_IF_ERROR(s.status());
+  std::vector<std::string> names;
+  for (;;) {
+    PB_ASSIGN_OR_RETURN(bool row, s.Step());
+    if (!row) return names;
+    names.push_back(s.Blob(0));
+  }
 }
 
 }  // namespace probebake::server

@@ -4,7 +4,8 @@
 //
 // Rows: a job is its BakeJob record (every field but the spec, serialized) plus its JobSpec
 // (serialized, separately, since it can be large and most reads do not need it). The result cache
-// maps a job digest to the BakeJobResult that baked it.
+// maps a job digest to the BakeJobResult that baked it. A cluster backend keeps its runs (a job's
+// array ids and shard attempts, opaque bytes here) beside the jobs, so that they survive a restart.
 //
 // Thread safety: one connection guarded by a mutex; every method may be called from any thread.
 #pragma once
@@ -62,6 +63,13 @@ class JobStore {
   absl::StatusOr<std::vector<std::pair<std::string, v1::BakeJobResult>>> ListCached();
   absl::Status PutCached(const std::string& jobDigest, const v1::BakeJobResult& result);
   absl::Status DeleteCached(const std::string& jobDigest);
+
+  // The run a cluster backend keeps for job `name` (its own serialization), if any.
+  absl::StatusOr<std::optional<std::string>> GetClusterRun(const std::string& name);
+  absl::Status PutClusterRun(const std::string& name, const std::string& run);
+  absl::Status DeleteClusterRun(const std::string& name);  // OK when there was none
+  // The names of the jobs with a cluster run, in name order.
+  absl::StatusOr<std::vector<std::string>> ListClusterRuns();
 
   // Runs `body` (which calls this store's methods) in one transaction: committed when it
   // returns OK, rolled back otherwise.

@@ -4,6 +4,8 @@
 //                    [--max-queued-jobs N] [--token-file F] [--tls-cert F --tls-key F]
 //                    [--max-probes N ...] [--asset-check-timeout S] [--config FILE]
 //                    [--port-file F] [--log-level L]
+//                    [--backend local|slurm --slurm-shared-dir DIR (--slurm-shards N |
+//                     --slurm-probes-per-shard P) [--slurm-partition P] [--slurm-retries R] ...]
 //
 // Exit codes: 0 after a graceful shutdown (SIGTERM or SIGINT), 2 for bad flags, 1 when the
 // server cannot start (data folder in use, port taken, unreadable token or certificate).
@@ -12,6 +14,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 #include <vector>
@@ -23,6 +26,7 @@
 #include "server/asset_check.h"
 #include "server/blob_store.h"
 #include "server/server.h"
+#include "server/slurm_backend.h"
 
 namespace {
 
@@ -125,6 +129,41 @@ int main(int argc, char** argv) {
                  "the job store can still record cancels, deletes and job ends (0: none)")
       ->check(CLI::Range(int64_t(0), int64_t(1) << 20))
       ->capture_default_str();
+  // Where jobs bake (docs/cluster.md): in this process, or as arrays on a Slurm cluster.
+  std::string backendName = "local";
+  app.add_option("--backend", backendName,
+                 "local: bake in this process; slurm: bake each job's shards as a Slurm array")
+      ->check(CLI::IsMember({"local", "slurm"}))
+      ->capture_default_str();
+  srv::SlurmConfig slurm;
+  app.add_option("--slurm-shared-dir", slurm.sharedDir,
+                 "Shared folder (POSIX, the same absolute path on this machine and every node) "
+                 "that holds each job's inputs, shards' volumes, progress and logs");
+  app.add_option("--slurm-partition", slurm.partition, "Partition (default: the cluster's)");
+  app.add_option("--slurm-shards", slurm.shards, "Shards per job")->check(CLI::NonNegativeNumber);
+  app.add_option("--slurm-probes-per-shard", slurm.probesPerShard,
+                 "Or: one shard per this many expected probes")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--slurm-retries", slurm.retries, "Submissions of a failed shard after its first")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--slurm-probebake", slurm.probebake,
+                 "The probebake CLI the nodes run (default: the one beside this executable)");
+  app.add_option("--slurm-cpus-per-task", slurm.cpusPerTask,
+                 "sbatch --cpus-per-task of each shard (0: Slurm's default)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--slurm-sbatch-arg", slurm.sbatchArgs,
+                 "More sbatch arguments, one per flag (e.g. --slurm-sbatch-arg=--time=4:00:00)");
+  app.add_option("--slurm-bin-dir", slurm.binDir,
+                 "Folder of sbatch, squeue and scancel (default: $PATH)");
+  app.add_option("--slurm-poll-interval", slurm.pollSeconds, "Seconds between squeue polls")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  app.add_option("--slurm-missing-part-grace", slurm.missingPartGraceSeconds,
+                 "Seconds a shard's task may have ended before its volume shows in the shared "
+                 "folder, before it counts as failed")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -146,6 +185,14 @@ int main(int argc, char** argv) {
                             gcIntervalMinutes);
     return kExitUsage;
   }
+  const bool onSlurm = backendName == "slurm";
+  // A job on the cluster holds a server thread that mostly waits for squeue.
+  if (onSlurm && app.count("--max-concurrent-jobs") == 0) options.maxConcurrentJobs = 16;
+  if (onSlurm && slurm.probebake.empty()) {
+    std::error_code error;
+    slurm.probebake =
+        std::filesystem::read_symlink("/proc/self/exe", error).parent_path() / "probebake";
+  }
   options.tokenFile = tokenFile;
   options.tlsCert = tlsCert;
   options.tlsKey = tlsKey;
@@ -162,17 +209,20 @@ int main(int argc, char** argv) {
   std::vector<std::string> self(argv, argv + argc);
   self[0] = "/proc/self/exe";
   const auto checkTimeout = std::chrono::seconds(assetCheckSeconds);
-  auto backend = [&self, checkTimeout](const srv::BlobStore* blobs,
-                                       const probebake::JobLimits& limits) {
-    srv::BakeBackend production = srv::ProductionBackend(blobs, limits);
-    auto check = std::make_shared<const srv::AssetCheck>(self, blobs->tmpDir(), checkTimeout);
-    production.build =
-        [check, build = production.build](
-            const probebake::v1::JobSpec& spec) -> absl::StatusOr<probebake::BakeJob> {
+  auto backend = [&self, checkTimeout, onSlurm,
+                  &slurm](const srv::BackendContext& context) -> absl::StatusOr<srv::BakeBackend> {
+    absl::StatusOr<srv::BakeBackend> made =
+        onSlurm ? srv::SlurmBackend(context, slurm)
+                : srv::ProductionBackend(context.blobs, context.limits);
+    if (!made.ok()) return made;
+    auto check =
+        std::make_shared<const srv::AssetCheck>(self, context.blobs->tmpDir(), checkTimeout);
+    made->build = [check, build = made->build](
+                      const probebake::v1::JobSpec& spec) -> absl::StatusOr<probebake::BakeJob> {
       if (absl::Status checked = check->Check(spec); !checked.ok()) return checked;
       return build(spec);
     };
-    return production;
+    return made;
   };
   auto server = srv::ProbebakeServer::Start(options, backend);
   if (!server.ok()) {

@@ -12,7 +12,9 @@ BakeBackend ProductionBackend(const BlobStore* blobs, const JobLimits& limits) {
     BlobAssetSource assets(blobs, limits.maxAssetBytes);
     return BuildBakeJob(spec, assets, limits);
   };
-  backend.bake = [](const BakeJob& job, const BakeOptions& options) { return Bake(job, options); };
+  backend.bake = [](const BakeRun&, const BakeJob& job, const BakeOptions& options) {
+    return Bake(job, options);
+  };
   backend.writeVolume = [](const std::string& path, const ProbeVolume& volume,
                            const VolumeMetadata& meta) {
     return WriteProbeVolume(path, volume, meta);

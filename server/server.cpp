@@ -111,8 +111,13 @@ absl::StatusOr<std::unique_ptr<ProbebakeServer>> ProbebakeServer::Start(
   config.progressIntervalSeconds = options.progressIntervalSeconds;
   config.checkpointIntervalSeconds = options.checkpointIntervalSeconds;
   config.maxMessageBytes = options.maxMessageBytes;
-  s->jobs_ = std::make_unique<JobManager>(config, s->blobs_.get(), s->store_.get(),
-                                          backend(s->blobs_.get(), options.limits));
+  BackendContext context;
+  context.blobs = s->blobs_.get();
+  context.store = s->store_.get();
+  context.limits = options.limits;
+  PB_ASSIGN_OR_RETURN(BakeBackend made, backend(context));
+  s->jobs_ =
+      std::make_unique<JobManager>(config, s->blobs_.get(), s->store_.get(), std::move(made));
 
   ServiceLimits limits;
   limits.chunkBytes = options.chunkBytes;

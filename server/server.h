@@ -49,8 +49,9 @@ struct ServerOptions {
   int64_t diskReserveBytes = int64_t(16) << 20;
 };
 
-// Makes the backend once the blob store exists (ProductionBackend in the real server).
-using BackendFactory = std::function<BakeBackend(const BlobStore*, const JobLimits&)>;
+// Makes the backend once the blob store and the job store are open (ProductionBackend or
+// SlurmBackend in the real server). Errors stop the server's start.
+using BackendFactory = std::function<absl::StatusOr<BakeBackend>(const BackendContext&)>;
 
 class ProbebakeServer {
  public:

@@ -127,7 +127,8 @@ server::BakeBackend FakeBackend(const server::BlobStore* blobs, const JobLimits&
     server::BlobAssetSource assets(blobs, limits.maxAssetBytes);
     return BuildBakeJob(spec, assets, limits);
   };
-  backend.bake = [probeDelay, stats](const BakeJob& job, const BakeOptions& options) {
+  backend.bake = [probeDelay, stats](const server::BakeRun&, const BakeJob& job,
+                                     const BakeOptions& options) {
     return FakeBake(job, options, probeDelay, stats);
   };
   backend.writeVolume = [](const std::string& path, const ProbeVolume& volume,

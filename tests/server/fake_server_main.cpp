@@ -38,8 +38,8 @@ int main(int argc, char** argv) {
   probebake::testing::FakeBakeStats stats;
   auto delay = std::chrono::microseconds(probeDelayUs);
   auto server = srv::ProbebakeServer::Start(
-      options, [&](const srv::BlobStore* blobs, const probebake::JobLimits& limits) {
-        return probebake::testing::FakeBackend(blobs, limits, delay, &stats);
+      options, [&](const srv::BackendContext& context) -> absl::StatusOr<srv::BakeBackend> {
+        return probebake::testing::FakeBackend(context.blobs, context.limits, delay, &stats);
       });
   if (!server.ok()) {
     probebake::Logger("server")->error("cannot start: {}", std::string(server.status().message()));

@@ -172,6 +172,36 @@ TEST(JobStore, ListPagesInInsertionOrder) {
   for (int i = 0; i < 7; ++i) EXPECT_EQ(seen[size_t(i)], "bakeJobs/" + std::to_string(i));
 }
 
+TEST(JobStore, ClusterRunsSurviveReopenUntilDeleted) {
+  // The Slurm backend's record of a job's arrays (slurm_backend.h) must outlive a restart, or a
+  // restarted server would submit the job's shards a second time.
+  TempDir dir;
+  auto path = dir.path() / "jobs.sqlite";
+  {
+    auto store = JobStore::Open(path);
+    ASSERT_TRUE(store.ok()) << store.status();
+    ASSERT_TRUE((*store)->PutClusterRun("bakeJobs/b", std::string("run\0b", 5)).ok());
+    ASSERT_TRUE((*store)->PutClusterRun("bakeJobs/a", "first").ok());
+    ASSERT_TRUE((*store)->PutClusterRun("bakeJobs/a", "second").ok());  // replaced
+  }
+  auto store = JobStore::Open(path);
+  ASSERT_TRUE(store.ok()) << store.status();
+  auto a = (*store)->GetClusterRun("bakeJobs/a");
+  ASSERT_TRUE(a.ok() && a->has_value());
+  EXPECT_EQ(**a, "second");
+  auto b = (*store)->GetClusterRun("bakeJobs/b");
+  ASSERT_TRUE(b.ok() && b->has_value());
+  EXPECT_EQ(**b, std::string("run\0b", 5));
+  auto names = (*store)->ListClusterRuns();
+  ASSERT_TRUE(names.ok());
+  EXPECT_EQ(*names, (std::vector<std::string>{"bakeJobs/a", "bakeJobs/b"}));
+  ASSERT_TRUE((*store)->DeleteClusterRun("bakeJobs/a").ok());
+  ASSERT_TRUE((*store)->DeleteClusterRun("bakeJobs/none").ok());
+  auto gone = (*store)->GetClusterRun("bakeJobs/a");
+  ASSERT_TRUE(gone.ok());
+  EXPECT_FALSE(gone->has_value());
+}
+
 TEST(JobStore, ResultCacheAndTransactions) {
   TempDir dir;
   auto store = *JobStore::Open(dir.path() / "jobs.sqlite");

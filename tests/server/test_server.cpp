@@ -124,9 +124,10 @@ void TestServer::Start() {
   auto delay = options_.probeDelay;
   FakeBakeStats* stats = stats_.get();
   auto started = server::ProbebakeServer::Start(
-      o, [delay, stats, fault = options_.volumeWriteFault](const server::BlobStore* blobs,
-                                                           const JobLimits& limits) {
-        server::BakeBackend backend = FakeBackend(blobs, limits, delay, stats);
+      o,
+      [delay, stats, fault = options_.volumeWriteFault](
+          const server::BackendContext& context) -> absl::StatusOr<server::BakeBackend> {
+        server::BakeBackend backend = FakeBackend(context.blobs, context.limits, delay, stats);
         if (fault) {
           backend.writeVolume = [fault, write = backend.writeVolume](const std::string& path,
                                                                      const ProbeVolume& volume,
