@@ -85,6 +85,7 @@ TEST(VolumeMerge, ShardsMergeIntoTheWholeGridBitForBit) {
   }
   ExpectSamePlane(m.validity, all.validity, "validity");
   ExpectSamePlane(m.stdError, all.stdError, "std_error");
+  ExpectSamePlane(m.stdErrorL0, all.stdErrorL0, "std_error_l0");
   ExpectSamePlane(m.sampleCount, all.sampleCount, "sample_count");
   EXPECT_EQ(m.stats.probes, all.stats.probes);
   EXPECT_EQ(m.stats.samples, all.stats.samples);

@@ -123,6 +123,7 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
   out.active.assign(probeCount, 0);
   out.validity.assign(probeCount, 0.0f);
   out.stdError.assign(probeCount, 0.0f);
+  out.stdErrorL0.assign(probeCount, 0.0f);
   out.sampleCount.assign(probeCount, 0.0f);
   out.radiance.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
   if (!first.irradiance.empty())
@@ -149,6 +150,7 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
       const bool seen = out.active[q] != 0;
       put(out.validity[q], v.validity[p]);
       put(out.stdError[q], v.stdError[p]);
+      put(out.stdErrorL0[q], v.stdErrorL0[p]);
       put(out.sampleCount[q], v.sampleCount[p]);
       for (int c = 0; c < coeffs; ++c) {
         for (int ch = 0; ch < 3; ++ch) {
