@@ -158,6 +158,15 @@ TEST(VolumeMerge, RefusesPartsThatDoNotBelongTogether) {
       << bad.status();
   EXPECT_FALSE(MergeProbeVolumes({}).ok());
 
+  // A part read from a format-1 file comes from another baker.
+  std::vector<VolumePart> formats = ReadParts({dir.File("a.vdb"), dir.File("b.vdb")});
+  ASSERT_EQ(formats.size(), 2u);
+  formats[1].file.format = kProbeVolumeFormat1;
+  const absl::StatusOr<ProbeVolumeFile> mixed = MergeProbeVolumes(std::move(formats));
+  ASSERT_FALSE(mixed.ok());
+  EXPECT_NE(std::string(mixed.status().message()).find("probebake_format"), std::string::npos)
+      << mixed.status();
+
   // Two small parts a million steps apart would make a dense grid of millions of empty probes.
   std::vector<VolumePart> apart = ReadParts({dir.File("a.vdb"), dir.File("b.vdb")});
   ASSERT_EQ(apart.size(), 2u);

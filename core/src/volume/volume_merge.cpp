@@ -39,6 +39,8 @@ std::vector<std::pair<std::string, std::string>> Invariants(const ProbeVolumeFil
   const ProbeVolume& v = f.volume;
   const bool autoWindow = v.window.rfind(kAutoPrefix, 0) == 0;
   return {
+      // Parts of two formats come from two bakers, whose bits differ.
+      {"probebake_format", std::to_string(f.format)},
       {"sh_order", std::to_string(v.shOrder)},
       {"has_irradiance", v.irradiance.empty() ? "false" : "true"},
       {"sh_window", autoWindow ? "AUTO" : v.window},
