@@ -60,6 +60,10 @@ struct LatticeErrors {
   // sqrt(sum of squared measured errors / sum of squared reported errors) over the probes: for
   // std_error (the irradiance figure) and std_error_l0. 0 when there is nothing to compare.
   double honesty = 0, honestyL0 = 0;
+  // A single probe's std_error against the true standard error (the RMS of the measured
+  // irradiance errors over the probes, which are statistically the same): the 5% and 95%
+  // quantiles over the probes of their ratio.
+  double spreadLow = 0, spreadHigh = 0;
 };
 
 LatticeErrors Compare(const ProbeVolume& v, const std::vector<double>& exact) {
@@ -68,6 +72,7 @@ LatticeErrors Compare(const ProbeVolume& v, const std::vector<double>& exact) {
   LatticeErrors out;
   out.rms.assign(n, 0.0);
   double irrSq = 0, seSq = 0, l0Sq = 0, seL0Sq = 0, exactIrrSq = 0;
+  std::vector<double> reported;
   for (int l = 0, i = 0; i < n; ++l)
     for (int m = -l; m <= l; ++m, ++i) exactIrrSq += Square(IrradianceBandFactor(l) * exact[i]);
   for (int64_t p = 0; p < probes; ++p) {
@@ -86,11 +91,16 @@ LatticeErrors Compare(const ProbeVolume& v, const std::vector<double>& exact) {
     out.worstAll.push_back(worstAll);
     irrSq += errIrrSq / exactIrrSq;
     seSq += Square(v.stdError[p]);
+    reported.push_back(v.stdError[p]);
     l0Sq += Square((v.radiance[0][3 * p] - exact[0]) / exact[0]);
     seL0Sq += Square(v.stdErrorL0[p]);
   }
   for (double& r : out.rms) r = std::sqrt(r / double(probes));
   out.honesty = seSq > 0 ? std::sqrt(irrSq / seSq) : 0;
+  const double trueError = std::sqrt(irrSq / double(probes));
+  std::sort(reported.begin(), reported.end());
+  out.spreadLow = reported[size_t(probes / 20)] / trueError;
+  out.spreadHigh = reported[size_t(probes - 1 - probes / 20)] / trueError;
   // Where L0 is exact (every sample sees the same radiance) both are rounding: no ratio.
   out.honestyL0 = seL0Sq > 0 && out.rms[0] > 1e-6 ? std::sqrt(l0Sq / seL0Sq) : 0;
   return out;
@@ -103,10 +113,11 @@ double MaxOf(const std::vector<double>& v, size_t begin, size_t end) {
 void Print(const std::string& what, const LatticeErrors& e) {
   std::printf(
       "[measured] %s: RMS over probes, worst coefficient: l <= 2 %.2e, all %.2e; worst probe: "
-      "l <= 2 %.2e, all %.2e; honesty std_error %.2f, std_error_l0 %.2f\n",
+      "l <= 2 %.2e, all %.2e; honesty std_error %.2f, std_error_l0 %.2f; 90%% of probes' "
+      "std_error within %.2f to %.2f of the true one\n",
       what.c_str(), MaxOf(e.rms, 0, 9), MaxOf(e.rms, 0, e.rms.size()),
       MaxOf(e.worstL2, 0, e.worstL2.size()), MaxOf(e.worstAll, 0, e.worstAll.size()), e.honesty,
-      e.honestyL0);
+      e.honestyL0, e.spreadLow, e.spreadHigh);
 }
 
 // Calibration: the mean over probes of the squared measured error and of the squared reported
@@ -122,6 +133,16 @@ constexpr double kHonestyLow = 0.8, kHonestyHigh = 1.2;
 void ExpectHonest(double honesty, const std::string& what) {
   EXPECT_GE(honesty, kHonestyLow) << what;
   EXPECT_LE(honesty, kHonestyHigh) << what;
+}
+
+// A single probe's figure (the default 4 batches): one coefficient's standard error from 4
+// batches (3 degrees of freedom) lies, for 90% of probes, between sqrt(chi2_3(5%) / 3) = 0.34
+// and sqrt(chi2_3(95%) / 3) = 1.61 times the true one. std_error pools the spread of every
+// coefficient, at least 3 of them with comparable weights in these scenes (9 degrees of freedom:
+// 0.61 to 1.37), so its range lies well inside; one coefficient's figure would fill it.
+void ExpectPooledSpread(const LatticeErrors& e, const std::string& what) {
+  EXPECT_GT(e.spreadLow, 0.34) << what;
+  EXPECT_LT(e.spreadHigh, 1.61) << what;
 }
 
 TEST(ProbeSampling, UniformSkyAt256SamplesIsAccurateToOrderEight) {
@@ -142,6 +163,7 @@ TEST(ProbeSampling, UniformSkyAt256SamplesIsAccurateToOrderEight) {
   // coefficients carry the error, which std_error sees and std_error_l0 cannot.
   EXPECT_LT(e.rms[0], 1e-6);
   ExpectHonest(e.honesty, "uniform sky");
+  ExpectPooledSpread(e, "uniform sky");
 
   job.settings.batches = 2;
   const LatticeErrors two = Compare(BakeOrDie(job), exact);
@@ -169,6 +191,7 @@ TEST(ProbeSampling, BlackGroundHemisphereAt256Samples) {
     EXPECT_LE(MaxOf(e.rms, 0, 9), 1.5e-2) << what;
     ExpectHonest(e.honesty, what);
     ExpectHonest(e.honestyL0, what + " (L0)");
+    ExpectPooledSpread(e, what);
   }
 }
 
@@ -185,6 +208,7 @@ TEST(ProbeSampling, FurnaceAndConstantMapErrorsAreTheReportedOnes) {
     Print("furnace, 256 samples, 4 batches", e);
     ExpectHonest(e.honesty, "furnace");
     ExpectHonest(e.honestyL0, "furnace (L0)");
+    ExpectPooledSpread(e, "furnace");
   }
   {
     // A constant map is sampled by its cells, not as the uniform sky is, and gains less from the
@@ -198,6 +222,7 @@ TEST(ProbeSampling, FurnaceAndConstantMapErrorsAreTheReportedOnes) {
     const LatticeErrors e = Compare(BakeOrDie(job), CapProjection(2, {0, 0, 1}, -1));
     Print("constant map, 256 samples, 4 batches", e);
     ExpectHonest(e.honesty, "constant map");
+    ExpectPooledSpread(e, "constant map");
   }
 }
 
