@@ -12,8 +12,9 @@
 namespace probebake::server {
 namespace {
 
-constexpr char kMagic[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '3'};
-// The format before BakeWork was added; read with zero work.
+constexpr char kMagic[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '4'};
+// The formats before the L0 standard errors (03) and before BakeWork (02).
+constexpr char kMagic03[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '3'};
 constexpr char kMagic02[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '2'};
 constexpr size_t kHashHexBytes = 64;
 
@@ -150,6 +151,7 @@ absl::Status WriteCheckpoint(const std::filesystem::path& path, const std::strin
   w.Pod(work.wallSeconds);
   w.Pod(work.samples);
   w.Pod(work.rays);
+  w.Vector(volume.stdErrorL0);
   std::string hash = Sha256Hex(w.bytes());
   w.bytes().append(hash);
   return runtime::WriteFileAtomic(path, w.bytes());
@@ -165,7 +167,8 @@ absl::StatusOr<Checkpoint> Read(const std::filesystem::path& path,
     return absl::DataLossError(absl::StrCat("checkpoint ", path.string(), ": ", std::string(why)));
   };
   if (bytes.size() < sizeof(kMagic) + kHashHexBytes) return corrupt("not a probebake checkpoint");
-  const bool hasWork = std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) == 0;
+  const bool current = std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) == 0;
+  const bool hasWork = current || std::memcmp(bytes.data(), kMagic03, sizeof(kMagic03)) == 0;
   if (!hasWork && std::memcmp(bytes.data(), kMagic02, sizeof(kMagic02)) != 0)
     return corrupt("not a probebake checkpoint");
   std::string_view body(bytes.data(), bytes.size() - kHashHexBytes);
@@ -177,6 +180,11 @@ absl::StatusOr<Checkpoint> Read(const std::filesystem::path& path,
     return corrupt("malformed contents");
   if (hasWork && (!r.Pod(&c.work.wallSeconds) || !r.Pod(&c.work.samples) || !r.Pod(&c.work.rays)))
     return corrupt("malformed contents");
+  if (!current) {
+    c.volume.stdErrorL0 = c.volume.stdError;  // before 04 std_error was the L0 figure
+  } else if (!r.Vector(&c.volume.stdErrorL0)) {
+    return corrupt("malformed contents");
+  }
   if (!r.AtEnd()) return corrupt("malformed contents");
   if (expectedJobDigest && c.jobDigest != *expectedJobDigest)
     return corrupt(absl::StrCat("made for job digest ", c.jobDigest, ", not ", *expectedJobDigest));

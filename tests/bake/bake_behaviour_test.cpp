@@ -125,6 +125,7 @@ void ExpectIdentical(const ProbeVolume& a, const ProbeVolume& b) {
                              a.radiance[c].size() * sizeof(float)))
         << "coefficient " << c;
   EXPECT_EQ(a.stdError, b.stdError);
+  EXPECT_EQ(a.stdErrorL0, b.stdErrorL0);
   EXPECT_EQ(a.sampleCount, b.sampleCount);
   EXPECT_EQ(a.validity, b.validity);
   EXPECT_EQ(a.active, b.active);
@@ -208,7 +209,7 @@ TEST(Determinism, ResumedBakeGivesTheSameBits) {
       done[p] = 1;
     } else {  // not finished: its values must not leak into the result
       for (auto& plane : partial.radiance) plane[3 * p] = plane[3 * p + 1] = plane[3 * p + 2] = -1;
-      partial.stdError[p] = partial.sampleCount[p] = -1;
+      partial.stdError[p] = partial.stdErrorL0[p] = partial.sampleCount[p] = -1;
     }
   }
   BakeOptions resume;

@@ -55,6 +55,7 @@ std::string HashVolume(const ProbeVolume& v) {
   for (const auto& plane : v.irradiance) addFloats(plane);
   addFloats(v.validity);
   addFloats(v.stdError);
+  addFloats(v.stdErrorL0);
   addFloats(v.sampleCount);
   addFloats(v.autoWindowT);
   bytes += v.window;
@@ -278,6 +279,7 @@ TEST(GoldenBits, TheHashSeesEveryStoredNumber) {
   v.irradiance.assign(4, std::vector<float>(6, 0.25f));
   v.validity = {1, 1};
   v.stdError = {0.01f, 0.02f};
+  v.stdErrorL0 = {0.005f, 0.01f};
   v.sampleCount = {64, 64};
   const std::string base = HashVolume(v);
   const std::vector<std::function<void(ProbeVolume*)>> nudges = {
@@ -285,6 +287,7 @@ TEST(GoldenBits, TheHashSeesEveryStoredNumber) {
       [](ProbeVolume* x) { x->irradiance[0][0] = std::nextafter(x->irradiance[0][0], 1.0f); },
       [](ProbeVolume* x) { x->validity[1] = 0; },
       [](ProbeVolume* x) { x->stdError[0] = std::nextafter(x->stdError[0], 1.0f); },
+      [](ProbeVolume* x) { x->stdErrorL0[1] = std::nextafter(x->stdErrorL0[1], 1.0f); },
       [](ProbeVolume* x) { x->sampleCount[1] = 65; },
       [](ProbeVolume* x) { x->active[0] = 0; },
       [](ProbeVolume* x) { x->window = "HANNING"; },

@@ -96,7 +96,7 @@ v1::BakeSettings BaseSettings() {
   s.set_estimator(v1::BakeSettings::NEE_MIS);
   s.set_sampler(v1::BakeSettings::SOBOL);
   s.set_russian_roulette(true);
-  s.set_batches(16);
+  // batches unset: the default (4, or 64 when adaptive).
   return s;
 }
 
@@ -116,6 +116,8 @@ std::vector<Config> LadderConfigs() {
   add("nee_mis_independent", "NEE+MIS, independent",
       [](v1::BakeSettings& s) { s.set_sampler(v1::BakeSettings::INDEPENDENT); });
   add("nee_mis_sobol", "NEE+MIS, Sobol (default)", [](v1::BakeSettings&) {});
+  add("nee_mis_sobol_b16", "NEE+MIS, Sobol, 16 batches",
+      [](v1::BakeSettings& s) { s.set_batches(16); });
   add("nee_mis_sobol_no_rr", "NEE+MIS, Sobol, no roulette",
       [](v1::BakeSettings& s) { s.set_russian_roulette(false); });
   add("order1", "NEE+MIS, Sobol, order 1", [](v1::BakeSettings& s) { s.set_sh_order(1); });
@@ -173,8 +175,8 @@ struct Timed {
 };
 
 bool SameBits(const ProbeVolume& a, const ProbeVolume& b) {
-  return a.radiance == b.radiance && a.stdError == b.stdError && a.sampleCount == b.sampleCount &&
-         a.active == b.active;
+  return a.radiance == b.radiance && a.stdError == b.stdError && a.stdErrorL0 == b.stdErrorL0 &&
+         a.sampleCount == b.sampleCount && a.active == b.active;
 }
 
 // A bake longer than this (CPU seconds) is not repeated: its timing noise is small already.
@@ -234,10 +236,11 @@ BakeRow MakeRow(const BenchScene& scene, const Config& config, const BakeJob& jo
     const double target = s.targetRelError;
     double stopped = 0, within = 0, within2 = 0, stoppedSq = 0;
     for (const ProbeErrors& e : errors) {
-      if (e.stdError <= target) stoppedSq += e.l0Rel * e.l0Rel;
+      // The target bounds std_error, the luminance irradiance error's estimate.
+      if (e.stdError <= target) stoppedSq += e.irradianceLumRel * e.irradianceLumRel;
       stopped += e.stdError <= target ? 1 : 0;
-      within += e.l0Rel <= target ? 1 : 0;
-      within2 += e.l0Rel <= 2 * target ? 1 : 0;
+      within += e.irradianceLumRel <= target ? 1 : 0;
+      within2 += e.irradianceLumRel <= 2 * target ? 1 : 0;
     }
     const double n = double(errors.size());
     row.stoppedByTarget = stopped / n;
@@ -454,9 +457,11 @@ absl::Status Run(const Options& opt) {
       job.settings = ResolveSettings(settings);
       PB_ASSIGN_OR_RETURN(const Timed t, TimedBake(job, 1, repeats));
       BakeRow row = MakeRow(scene, config, job, t, reference, refName);
-      log->info("{} {} spp={}: cpu {:.3f} s, irradiance error {:.4g}, honesty {:.2f}", scene.name,
-                config.id, job.settings.samplesPerProbe, t.cpu, row.error.meanIrradianceRel,
-                row.error.honestyL0);
+      log->info(
+          "{} {} spp={}: cpu {:.3f} s, irradiance error {:.4g}, honesty {:.2f} (L0 {:.2f}, RGB "
+          "{:.2f})",
+          scene.name, config.id, job.settings.samplesPerProbe, t.cpu, row.error.meanIrradianceRel,
+          row.error.honesty, row.error.honestyL0, row.error.honestyIrradiance);
       info.bakedProbes = row.probes;
       results.rows.push_back(std::move(row));
       return absl::OkStatus();

@@ -36,8 +36,13 @@ std::vector<ProbeErrors> CompareWithReference(const ProbeVolume& volume,
   for (int64_t p = 0; p < volume.grid.ProbeCount(); ++p) {
     if (!volume.active[p] || volume.validity[p] == 0.0f || !reference.active[p]) continue;
     double radErr2 = 0, radRef2 = 0, predicted2 = 0, predictedRef2 = 0, parsevalErr2 = 0,
-           parsevalRef2 = 0;
+           parsevalRef2 = 0, lumErr2 = 0, lumRef2 = 0;
     for (int c = 0; c < coeffs; ++c) {
+      const double lumBake = Luminance(Vec3d(
+          volume.radiance[c][3 * p], volume.radiance[c][3 * p + 1], volume.radiance[c][3 * p + 2]));
+      const double lumRef = Luminance(reference.radiance[p][c]);
+      lumErr2 += band[c] * band[c] * (lumBake - lumRef) * (lumBake - lumRef);
+      lumRef2 += band[c] * band[c] * lumRef * lumRef;
       for (int ch = 0; ch < 3; ++ch) {
         bake[c][ch] = volume.radiance[c][3 * p + ch];
         ref[c][ch] = reference.radiance[p][c][ch];
@@ -72,8 +77,11 @@ std::vector<ProbeErrors> CompareWithReference(const ProbeVolume& volume,
     const double lumRef = Luminance(ref[0]);
     e.l0Signed = (Luminance(bake[0]) - lumRef) / std::abs(lumRef);
     e.l0Rel = std::abs(e.l0Signed);
+    e.irradianceLumRel = lumRef2 > 0 ? std::sqrt(lumErr2 / lumRef2) : 0;
     e.stdError = volume.stdError[p];
+    e.stdErrorL0 = volume.stdErrorL0[p];
     e.refRelStdError = reference.relStdError[p];
+    e.refRelStdErrorL0 = reference.relStdErrorL0[p];
     e.irradiancePredicted = std::sqrt(predicted2 / irrRef2);
     e.irradiancePredictedRef = std::sqrt(predictedRef2 / irrRef2);
     e.samples = volume.sampleCount[p];
@@ -87,16 +95,20 @@ ErrorSummary Summarise(const std::vector<ProbeErrors>& errors) {
   s.probes = int64_t(errors.size());
   if (errors.empty()) return s;
   std::vector<double> irr;
-  double l0Sq = 0, seSq = 0, expectedL0Sq = 0, irrSq = 0, expectedIrrSq = 0;
+  double l0Sq = 0, seSq = 0, expectedSq = 0, expectedL0Sq = 0, irrSq = 0, expectedIrrSq = 0,
+         lumSq = 0;
   for (const ProbeErrors& e : errors) {
     irr.push_back(e.irradianceRel);
     s.meanIrradianceRel += e.irradianceRel;
     s.maxIrradianceRel = std::max(s.maxIrradianceRel, e.irradianceRel);
     s.meanRadianceRel += e.radianceRel;
     l0Sq += e.l0Rel * e.l0Rel;
+    lumSq += e.irradianceLumRel * e.irradianceLumRel;
     s.meanStdError += e.stdError;
+    s.meanStdErrorL0 += e.stdErrorL0;
     seSq += e.stdError * e.stdError;
-    expectedL0Sq += e.stdError * e.stdError + e.refRelStdError * e.refRelStdError;
+    expectedSq += e.stdError * e.stdError + e.refRelStdError * e.refRelStdError;
+    expectedL0Sq += e.stdErrorL0 * e.stdErrorL0 + e.refRelStdErrorL0 * e.refRelStdErrorL0;
     irrSq += e.irradianceRel * e.irradianceRel;
     expectedIrrSq += e.irradiancePredicted * e.irradiancePredicted +
                      e.irradiancePredictedRef * e.irradiancePredictedRef;
@@ -111,8 +123,11 @@ ErrorSummary Summarise(const std::vector<ProbeErrors>& errors) {
   s.rmsIrradianceRel = std::sqrt(irrSq / n);
   s.meanRadianceRel /= n;
   s.rmsL0Rel = std::sqrt(l0Sq / n);
+  s.rmsIrradianceLumRel = std::sqrt(lumSq / n);
   s.meanStdError /= n;
+  s.meanStdErrorL0 /= n;
   s.rmsStdError = std::sqrt(seSq / n);
+  s.honesty = expectedSq > 0 ? s.rmsIrradianceLumRel / std::sqrt(expectedSq / n) : 0;
   s.honestyL0 = expectedL0Sq > 0 ? s.rmsL0Rel / std::sqrt(expectedL0Sq / n) : 0;
   s.honestyIrradiance = expectedIrrSq > 0 ? s.rmsIrradianceRel / std::sqrt(expectedIrrSq / n) : 0;
   s.meanSamples /= n;

@@ -7,14 +7,18 @@
 //    integrated by a product quadrature exact for the squared order-L polynomial (and checked
 //    against the same number from coefficients by Parseval, to 1e-9);
 //  - radiance SH: sqrt(sum_{i,ch} (c_bake - c_ref)^2) / sqrt(sum_{i,ch} c_ref^2);
-//  - L0: |lum(L0_bake) - lum(L0_ref)| / lum(L0_ref), the quantity the bake's std_error estimates.
-// The error the bake expects of itself: std_error for L0, and for irradiance
+//  - luminance irradiance: the same for the luminance of the coefficients (by Parseval,
+//      sqrt(sum_i A_l^2 (lum c_bake - lum c_ref)^2) / sqrt(sum_i A_l^2 (lum c_ref)^2)), the
+//      quantity the bake's std_error estimates (core/src/bake/probe_finish.h);
+//  - L0: |lum(L0_bake) - lum(L0_ref)| / lum(L0_ref), the quantity its std_error_l0 estimates.
+// The error the bake expects of itself: std_error, std_error_l0, and for the RGB irradiance
 // sqrt(sum A_l^2 se_i^2) / |E_ref| from the per-coefficient standard errors (coefficientErrors),
-// both combined in quadrature with the reference's own (independent) error.
+// each combined in quadrature with the reference's own (independent) error.
 //
 // Summary "honesty" ratios: RMS over probes of the measured error divided by the RMS of the
-// expected error. An honest estimate gives ~1 (the RMS of a t-distributed ratio with B-1 degrees
-// of freedom is sqrt((B-1)/(B-3)): 1.08 for 16 batches); > 1 means errors are underestimated.
+// expected error. An honest estimate gives ~1; > 1 means errors are underestimated. (With few
+// batches the ratio of one probe is far from 1 either way, but the mean of its square is
+// still 1: the batch variance is unbiased.)
 #pragma once
 
 #include <cstdint>
@@ -31,8 +35,11 @@ struct ProbeErrors {
   double radianceRel = 0;
   double l0Rel = 0;                // |l0Signed|
   double l0Signed = 0;             // (lum(L0_bake) - lum(L0_ref)) / lum(L0_ref)
-  double stdError = 0;             // reported relative std error of luminance L0
-  double refRelStdError = 0;       // the reference's own
+  double irradianceLumRel = 0;     // measured luminance irradiance error
+  double stdError = 0;             // reported std_error
+  double stdErrorL0 = 0;           // reported std_error_l0
+  double refRelStdError = 0;       // the reference's own std_error ...
+  double refRelStdErrorL0 = 0;     // ... and std_error_l0
   double irradiancePredicted = 0;  // expected relative irradiance error of the bake
   double irradiancePredictedRef = 0;
   double samples = 0;
@@ -44,8 +51,11 @@ struct ErrorSummary {
   double rmsIrradianceRel = 0;
   double meanRadianceRel = 0;
   double rmsL0Rel = 0;
-  double meanStdError = 0, rmsStdError = 0;
-  double honestyL0 = 0;          // rmsL0Rel / sqrt(mean(stdError^2 + refRelStdError^2))
+  double rmsIrradianceLumRel = 0;
+  double meanStdError = 0, rmsStdError = 0, meanStdErrorL0 = 0;
+  // rmsIrradianceLumRel / sqrt(mean(stdError^2 + refRelStdError^2)): the honesty of std_error.
+  double honesty = 0;
+  double honestyL0 = 0;          // rmsL0Rel / sqrt(mean(stdErrorL0^2 + refRelStdErrorL0^2))
   double honestyIrradiance = 0;  // rmsIrradianceRel / sqrt(mean(pred^2 + predRef^2))
   double meanSamples = 0;
   // Mean over probes of the signed relative L0 difference, and its standard error from the

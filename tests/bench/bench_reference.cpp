@@ -21,7 +21,7 @@ namespace {
 // int64 probes, int32 order, samples (int64), maxDepth, batches (int32), seed (uint64), seconds
 // (double), then per probe: active (uint8), and when active the RGB radiance and std error of
 // every coefficient (double) and the relative std error (double).
-constexpr char kMagic[] = "probebake-bench-reference 1\n";
+constexpr char kMagic[] = "probebake-bench-reference 2\n";
 
 template <typename T>
 void Put(std::string* out, const T& value) {
@@ -71,6 +71,7 @@ std::string Serialise(const Reference& r) {
     for (int c = 0; c < coeffs; ++c)
       for (int ch = 0; ch < 3; ++ch) Put(&out, r.stdError[p][c][ch]);
     Put(&out, r.relStdError[p]);
+    Put(&out, r.relStdErrorL0[p]);
   }
   return out;
 }
@@ -100,6 +101,7 @@ absl::StatusOr<Reference> Deserialise(const std::string& bytes, const std::strin
   r.radiance.assign(size_t(probes), {});
   r.stdError.assign(size_t(probes), {});
   r.relStdError.assign(size_t(probes), 0.0);
+  r.relStdErrorL0.assign(size_t(probes), 0.0);
   for (int64_t p = 0; p < probes; ++p) {
     uint8_t active = 0;
     if (!in.Get(&active)) return absl::DataLossError("truncated");
@@ -113,7 +115,8 @@ absl::StatusOr<Reference> Deserialise(const std::string& bytes, const std::strin
     for (int c = 0; c < coeffs; ++c)
       for (int ch = 0; ch < 3; ++ch)
         if (!in.Get(&r.stdError[p][c][ch])) return absl::DataLossError("truncated");
-    if (!in.Get(&r.relStdError[p])) return absl::DataLossError("truncated");
+    if (!in.Get(&r.relStdError[p]) || !in.Get(&r.relStdErrorL0[p]))
+      return absl::DataLossError("truncated");
   }
   if (!in.AtEnd()) return absl::DataLossError("trailing bytes");
   r.fromCache = true;
@@ -195,6 +198,7 @@ absl::StatusOr<Reference> AnalyticReference(const BakeJob& job, int order) {
   r.radiance.resize(size_t(probes));
   r.stdError.assign(size_t(probes), std::vector<Vec3d>(ShCoeffCount(order)));
   r.relStdError.assign(size_t(probes), 0.0);
+  r.relStdErrorL0.assign(size_t(probes), 0.0);
   // The ground of the sky_sphere scene is its one mesh, a plane at constant height.
   if (job.scene.meshes.size() != 1)
     return absl::FailedPreconditionError("analytic reference: expects one ground mesh");
@@ -255,6 +259,7 @@ absl::StatusOr<Reference> BakedReference(const BenchScene& scene, const v1::Bake
   r.radiance.assign(size_t(probes), {});
   r.stdError.assign(size_t(probes), {});
   r.relStdError.assign(size_t(probes), 0.0);
+  r.relStdErrorL0.assign(size_t(probes), 0.0);
   for (int64_t p = 0; p < probes; ++p) {
     if (!volume.active[p] || volume.validity[p] == 0.0f) continue;
     r.active[p] = 1;
@@ -267,6 +272,7 @@ absl::StatusOr<Reference> BakedReference(const BenchScene& scene, const v1::Bake
       }
     }
     r.relStdError[p] = volume.stdError[p];
+    r.relStdErrorL0[p] = volume.stdErrorL0[p];
   }
   PB_RETURN_IF_ERROR(WriteFileAtomic(path, Serialise(r)));
   log->info("{}: reference baked in {:.1f} s", scene.name, r.bakeSeconds);
@@ -299,7 +305,7 @@ double ReferenceDifference(const Reference& a, const Reference& b, int order) {
 
 std::string ReferenceText(const Reference& r, int64_t ladderMax) {
   if (r.exact) return "closed form (exact SH projection, Funk-Hecke)";
-  double irr = 0, se = 0;
+  double irr = 0, se = 0, seL0 = 0;
   int n = 0;
   for (size_t p = 0; p < r.active.size(); ++p) {
     if (!r.active[p]) continue;
@@ -315,6 +321,7 @@ std::string ReferenceText(const Reference& r, int64_t ladderMax) {
     if (norm > 0) {
       irr += std::sqrt(pred / norm);
       se += r.relStdError[p];
+      seL0 += r.relStdErrorL0[p];
       ++n;
     }
   }
@@ -322,11 +329,11 @@ std::string ReferenceText(const Reference& r, int64_t ladderMax) {
       r.fromCache ? "read from the cache" : Format("baked in %.0f s", r.bakeSeconds);
   return Format(
       "bake of %lld samples/probe (%lldx the largest ladder count), order %d, depth %d, %d "
-      "batches, seed %#llx, its own expected error: irradiance %.3g%%, L0 std error %.3g%% "
-      "(means over probes); job digest %.12s..., %s",
+      "batches, seed %#llx, its own expected error: irradiance %.3g%% (RGB), std_error %.3g%%, "
+      "std_error_l0 %.3g%% (means over probes); job digest %.12s..., %s",
       (long long)r.samplesPerProbe, (long long)(r.samplesPerProbe / ladderMax), r.order, r.maxDepth,
       r.batches, (unsigned long long)r.seed, 100 * irr / std::max(n, 1), 100 * se / std::max(n, 1),
-      r.jobDigest.c_str(), origin.c_str());
+      100 * seL0 / std::max(n, 1), r.jobDigest.c_str(), origin.c_str());
 }
 
 }  // namespace probebake::bench

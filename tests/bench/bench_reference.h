@@ -34,7 +34,8 @@ struct Reference {
   std::vector<uint8_t> active;
   std::vector<std::vector<Vec3d>> radiance;  // [probe][coefficient] RGB
   std::vector<std::vector<Vec3d>> stdError;  // same layout, absolute; zero when exact
-  std::vector<double> relStdError;           // relative std error of luminance L0; 0 when exact
+  // Its std_error and std_error_l0 (probe_finish.h); 0 when exact.
+  std::vector<double> relStdError, relStdErrorL0;
 };
 
 // The exact projection of the sky_sphere scene at every probe of `job`'s grid.

@@ -247,7 +247,7 @@ std::string Plot(const BenchResults& r, const std::string& scene, const std::str
       svg += Format(
           "<rect x=\"%.1f\" y=\"%.1f\" width=\"7\" height=\"7\" fill=\"none\" "
           "stroke=\"%s\" stroke-width=\"1.5\"/>\n",
-          x - 3.5, y - 3.5, row.batches == 16 ? "#444" : "#2ca02c");
+          x - 3.5, y - 3.5, row.batches == 64 ? "#2ca02c" : "#444");
     }
   }
   svg += Format(
@@ -377,10 +377,13 @@ std::string Markdown(const BenchResults& r) {
       "placement and validity rays, light tables, sampling). Errors are per probe, "
       "then averaged over probes: the relative L2 error of the reconstructed irradiance over "
       "the sphere of normals (quadrature), the relative L2 error of the radiance SH "
-      "coefficients, and the relative error of the luminance of L0, which is what the "
-      "reported `std_error` estimates. **Honesty** = RMS measured error / RMS expected error "
-      "(the bake's own std error, combined with the reference's): ~1 is honest (1.08 is the "
-      "expectation for 16 batches), > 1 means the bake underestimates its error. "
+      "coefficients, and the relative error of the luminance of L0. The bake reports "
+      "`std_error`, its estimate of the relative error of its luminance irradiance over the "
+      "sphere of normals, and `std_error_l0`, of the luminance of L0. **Honesty** = RMS "
+      "measured luminance irradiance error / RMS `std_error` (combined with the reference's "
+      "own), **honesty L0** the same for L0 and `std_error_l0`, **honesty RGB** the RGB "
+      "irradiance error against the one predicted from the per-coefficient standard errors: ~1 "
+      "is honest, > 1 means the bake underestimates its error. "
       "The reference is truncated to each bake's order, so the figures measure the "
       "estimator, not SH truncation.\n\n";
   md += "Current presets: " + r.presetText + ".\n\n";
@@ -408,10 +411,10 @@ std::string Markdown(const BenchResults& r) {
   {
     std::vector<double> honesty;
     for (const BakeRow& row : r.rows)
-      if (row.group == "ladder" && row.config != "naive") honesty.push_back(row.error.honestyL0);
+      if (row.group == "ladder" && row.config != "naive") honesty.push_back(row.error.honesty);
     if (!honesty.empty())
       md += Format(
-          "- Error estimate: honesty (measured / estimated L0 error) median %.2f, range "
+          "- Error estimate: honesty (measured / reported irradiance error) median %.2f, range "
           "%.2f to %.2f over every non-naive ladder bake; the naive estimator's is "
           "not honest (see below).\n",
           Median(honesty), *std::min_element(honesty.begin(), honesty.end()),
@@ -525,19 +528,20 @@ std::string Markdown(const BenchResults& r) {
 
     md +=
         "| configuration | samples | CPU s | wall s | Mrays/CPU-s | probes/s | irradiance err "
-        "mean | median | max | radiance err | L0 err RMS | mean std_error | honesty L0 | "
-        "honesty irr |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+        "mean | median | max | radiance err | L0 err RMS | mean std_error | honesty | honesty L0 "
+        "| honesty RGB |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
     for (const BakeRow& row : r.rows) {
       if (row.scene != s.name || row.group != "ladder") continue;
       md += Format(
-          "| %s | %lld | %.3g | %.3g | %.3g | %.3g | %s | %s | %s | %s | %s | %s | %s | "
+          "| %s | %lld | %.3g | %.3g | %.3g | %.3g | %s | %s | %s | %s | %s | %s | %s | %s | "
           "%s |\n",
           row.label.c_str(), (long long)row.samplesPerProbe, row.cpuSeconds, row.wallSeconds,
           double(row.rays) / row.cpuSeconds * 1e-6, double(row.probes) / row.wallSeconds,
           Pct(row.error.meanIrradianceRel).c_str(), Pct(row.error.medianIrradianceRel).c_str(),
           Pct(row.error.maxIrradianceRel).c_str(), Pct(row.error.meanRadianceRel).c_str(),
           Pct(row.error.rmsL0Rel).c_str(), Pct(row.error.meanStdError).c_str(),
-          Num(row.error.honestyL0).c_str(), Num(row.error.honestyIrradiance).c_str());
+          Num(row.error.honesty).c_str(), Num(row.error.honestyL0).c_str(),
+          Num(row.error.honestyIrradiance).c_str());
     }
     md += "\n";
   }
@@ -558,34 +562,39 @@ std::string Markdown(const BenchResults& r) {
       "order 2 (the clamped cosine has no band-3 term) and a higher radiance error.\n"
       "- Russian roulette leaves the error per sample nearly unchanged and cuts rays per "
       "sample where paths are long (indoors); the sky_sphere scene has no bounces at all.\n"
-      "- Sobol stratifies within each of the 16 batches (independent scrambles, so the batch "
-      "spread stays an honest error estimate); a slope below -0.5 means it beats plain Monte "
-      "Carlo's rate.\n\n";
+      "- The Sobol sampler (the default) stratifies within each batch: the probe's directions "
+      "and light points are a spherical Fibonacci set turned by a random rotation of the "
+      "batch's own, the path's later numbers an Owen-scrambled Sobol sequence of its own, so "
+      "the batch spread stays an honest error estimate. Its default of 4 batches keeps each "
+      "batch's set large. A slope below -0.5 means it beats plain Monte Carlo's rate.\n\n";
   md +=
       "## Is the error estimate honest?\n\nMedian over the ladder of each configuration's "
-      "honesty ratios (16 ... max samples):\n\n| scene | configuration | honesty L0 (median, "
-      "min, max) | honesty irradiance (median, min, max) |\n|---|---|---|---|\n";
+      "honesty ratios (16 ... max samples), as median (min, max):\n\n| scene | configuration | "
+      "honesty (std_error) | honesty L0 (std_error_l0) | honesty RGB |\n|---|---|---|---|---|\n";
+  const auto spread = [](const std::vector<double>& v) {
+    return Format("%.2f (%.2f, %.2f)", Median(v), *std::min_element(v.begin(), v.end()),
+                  *std::max_element(v.begin(), v.end()));
+  };
   for (const SceneInfo& s : r.scenes) {
     for (const std::string& c : Configs(r, s.name, "ladder")) {
-      std::vector<double> l0, irr;
+      std::vector<double> h, l0, irr;
       for (const BakeRow& row : r.rows)
         if (row.scene == s.name && row.config == c && row.group == "ladder") {
+          h.push_back(row.error.honesty);
           l0.push_back(row.error.honestyL0);
           irr.push_back(row.error.honestyIrradiance);
         }
       if (l0.empty()) continue;
-      md += Format("| %s | %s | %.2f (%.2f, %.2f) | %.2f (%.2f, %.2f) |\n", s.name.c_str(),
-                   Label(r, c).c_str(), Median(l0), *std::min_element(l0.begin(), l0.end()),
-                   *std::max_element(l0.begin(), l0.end()), Median(irr),
-                   *std::min_element(irr.begin(), irr.end()),
-                   *std::max_element(irr.begin(), irr.end()));
+      md += Format("| %s | %s | %s | %s | %s |\n", s.name.c_str(), Label(r, c).c_str(),
+                   spread(h).c_str(), spread(l0).c_str(), spread(irr).c_str());
     }
   }
 
   md +=
       "\n## Adaptive sampling\n\n`targetRelError` is a standard error (a 1-sigma figure), so a "
-      "probe whose estimate is honest misses it ~32% of the time by chance; the target is "
-      "met when the RMS of the measured L0 errors over the probes is at or below it. Cap = "
+      "probe whose estimate is honest misses it ~32% of the time by chance; it bounds "
+      "`std_error`, so the target is met when the RMS over the probes of the measured luminance "
+      "irradiance errors is at or below it. Cap = "
       "largest ladder count; probes that reach it stop there whatever their error, so the last "
       "column judges the target on the probes that stopped because of it. A probe samples at "
       "least 8 of its batches, then 2 more, before it may stop (bake.cpp kMinAdaptiveBatches): "
@@ -593,19 +602,20 @@ std::string Markdown(const BenchResults& r) {
       "when an upper confidence bound of its error, not the estimate itself, is under the "
       "target at two successive rounds (bake.h AdaptiveErrorBound).\n\n| scene | target | batches "
       "| mean samples | "
-      "CPU s | RMS measured L0 | RMS / target | met | stopped by target | measured <= target | "
+      "CPU s | RMS measured | RMS / target | met | stopped by target | measured <= target | "
       "<= 2 target | irradiance err | RMS / target, probes stopped by target |\n"
       "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const BakeRow& row : r.rows) {
     if (row.group != "adaptive") continue;
-    const double ratio = row.error.rmsL0Rel / row.targetRelError;
-    md += Format(
-        "| %s | %s | %d | %.0f | %.3g | %s | %.2f | %s | %s | %s | %s | %s | %s |\n",
-        row.scene.c_str(), Pct(row.targetRelError, 2).c_str(), row.batches, row.error.meanSamples,
-        row.cpuSeconds, Pct(row.error.rmsL0Rel).c_str(), ratio, ratio <= 1 ? "yes" : "**no**",
-        Pct(row.stoppedByTarget, 3).c_str(), Pct(row.measuredWithinTarget, 3).c_str(),
-        Pct(row.measuredWithin2Target, 3).c_str(), Pct(row.error.meanIrradianceRel).c_str(),
-        row.stoppedByTarget > 0 ? Format("%.2f", row.stoppedRmsOverTarget).c_str() : "-");
+    const double ratio = row.error.rmsIrradianceLumRel / row.targetRelError;
+    md +=
+        Format("| %s | %s | %d | %.0f | %.3g | %s | %.2f | %s | %s | %s | %s | %s | %s |\n",
+               row.scene.c_str(), Pct(row.targetRelError, 2).c_str(), row.batches,
+               row.error.meanSamples, row.cpuSeconds, Pct(row.error.rmsIrradianceLumRel).c_str(),
+               ratio, ratio <= 1 ? "yes" : "**no**", Pct(row.stoppedByTarget, 3).c_str(),
+               Pct(row.measuredWithinTarget, 3).c_str(), Pct(row.measuredWithin2Target, 3).c_str(),
+               Pct(row.error.meanIrradianceRel).c_str(),
+               row.stoppedByTarget > 0 ? Format("%.2f", row.stoppedRmsOverTarget).c_str() : "-");
   }
   md +=
       "\nPer-probe figures (target, samples, reported and measured error): "
@@ -808,7 +818,8 @@ std::string Csv(const BenchResults& r) {
       "scene,config,group,reference,samples_per_probe,target_rel_error,sh_order,max_depth,"
       "batches,estimator,sampler,russian_roulette,threads,wall_s,cpu_s,rays,samples,probes,"
       "mrays_per_cpu_s,probes_per_wall_s,irr_err_mean,irr_err_median,irr_err_max,irr_err_rms,"
-      "rad_err_mean,l0_err_rms,std_error_mean,std_error_rms,honesty_l0,honesty_irr,"
+      "rad_err_mean,l0_err_rms,irr_lum_err_rms,std_error_mean,std_error_rms,std_error_l0_mean,"
+      "honesty,honesty_l0,honesty_irr,"
       "mean_samples,ref_irr_err_mean,ref_std_error_mean,stopped_by_target,"
       "measured_within_target,measured_within_2target,stopped_rms_over_target,mean_signed_l0,"
       "mean_signed_l0_std_error,repeats_identical\n";
@@ -817,30 +828,31 @@ std::string Csv(const BenchResults& r) {
     csv += Format(
         "%s,%s,%s,%s,%lld,%g,%d,%d,%d,%s,%s,%d,%d,%.6g,%.6g,%lld,%lld,%lld,%.6g,%.6g,%.6g,%.6g,"
         "%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g,"
-        "%d\n",
+        "%.6g,%.6g,%.6g,%d\n",
         w.scene.c_str(), w.config.c_str(), w.group.c_str(), w.reference.c_str(),
         (long long)w.samplesPerProbe, w.targetRelError, w.shOrder, w.maxDepth, w.batches,
         w.estimator.c_str(), w.sampler.c_str(), w.russianRoulette ? 1 : 0, w.threads, w.wallSeconds,
         w.cpuSeconds, (long long)w.rays, (long long)w.samples, (long long)w.probes,
         double(w.rays) / w.cpuSeconds * 1e-6, double(w.probes) / w.wallSeconds, e.meanIrradianceRel,
         e.medianIrradianceRel, e.maxIrradianceRel, e.rmsIrradianceRel, e.meanRadianceRel,
-        e.rmsL0Rel, e.meanStdError, e.rmsStdError, e.honestyL0, e.honestyIrradiance, e.meanSamples,
-        e.refMeanIrradianceRel, e.refMeanStdError, w.stoppedByTarget, w.measuredWithinTarget,
-        w.measuredWithin2Target, w.stoppedRmsOverTarget, e.meanSignedL0, e.meanSignedL0StdError,
-        w.repeatsIdentical ? 1 : 0);
+        e.rmsL0Rel, e.rmsIrradianceLumRel, e.meanStdError, e.rmsStdError, e.meanStdErrorL0,
+        e.honesty, e.honestyL0, e.honestyIrradiance, e.meanSamples, e.refMeanIrradianceRel,
+        e.refMeanStdError, w.stoppedByTarget, w.measuredWithinTarget, w.measuredWithin2Target,
+        w.stoppedRmsOverTarget, e.meanSignedL0, e.meanSignedL0StdError, w.repeatsIdentical ? 1 : 0);
   }
   return csv;
 }
 
 std::string AdaptiveCsv(const BenchResults& r) {
   std::string csv =
-      "scene,config,target_rel_error,batches,probe,samples,std_error,l0_err,irr_err,"
-      "irr_err_expected\n";
+      "scene,config,target_rel_error,batches,probe,samples,std_error,irr_lum_err,std_error_l0,"
+      "l0_err,irr_err,irr_err_expected\n";
   for (const BakeRow& w : r.rows) {
     for (const ProbeErrors& e : w.probeErrors) {
-      csv += Format("%s,%s,%g,%d,%lld,%.0f,%.6g,%.6g,%.6g,%.6g\n", w.scene.c_str(),
+      csv += Format("%s,%s,%g,%d,%lld,%.0f,%.6g,%.6g,%.6g,%.6g,%.6g,%.6g\n", w.scene.c_str(),
                     w.config.c_str(), w.targetRelError, w.batches, (long long)e.probe, e.samples,
-                    e.stdError, e.l0Rel, e.irradianceRel, e.irradiancePredicted);
+                    e.stdError, e.irradianceLumRel, e.stdErrorL0, e.l0Rel, e.irradianceRel,
+                    e.irradiancePredicted);
     }
   }
   return csv;
@@ -905,7 +917,8 @@ std::string Json(const BenchResults& r) {
         "\"threads\": %d, \"wallSeconds\": %s, \"cpuSeconds\": %s, \"rays\": %lld, \"samples\": "
         "%lld, \"probes\": %lld, \"irradianceErrorMean\": %s, \"irradianceErrorMedian\": %s, "
         "\"irradianceErrorMax\": %s, \"radianceErrorMean\": %s, \"l0ErrorRms\": %s, "
-        "\"stdErrorMean\": %s, \"honestyL0\": %s, \"honestyIrradiance\": %s, \"meanSamples\": %s, "
+        "\"irradianceLumErrorRms\": %s, \"stdErrorMean\": %s, \"stdErrorL0Mean\": %s, "
+        "\"honesty\": %s, \"honestyL0\": %s, \"honestyIrradiance\": %s, \"meanSamples\": %s, "
         "\"stoppedByTarget\": %s, \"measuredWithinTarget\": %s, \"stoppedRmsOverTarget\": %s, "
         "\"meanSignedL0\": %s, \"meanSignedL0StdError\": %s, \"repeatsIdentical\": %s}%s\n",
         JsonString(w.scene).c_str(), JsonString(w.config).c_str(), JsonString(w.group).c_str(),
@@ -917,12 +930,13 @@ std::string Json(const BenchResults& r) {
         (long long)w.probes, JsonNumber(e.meanIrradianceRel).c_str(),
         JsonNumber(e.medianIrradianceRel).c_str(), JsonNumber(e.maxIrradianceRel).c_str(),
         JsonNumber(e.meanRadianceRel).c_str(), JsonNumber(e.rmsL0Rel).c_str(),
-        JsonNumber(e.meanStdError).c_str(), JsonNumber(e.honestyL0).c_str(),
-        JsonNumber(e.honestyIrradiance).c_str(), JsonNumber(e.meanSamples).c_str(),
-        JsonNumber(w.stoppedByTarget).c_str(), JsonNumber(w.measuredWithinTarget).c_str(),
-        JsonNumber(w.stoppedRmsOverTarget).c_str(), JsonNumber(e.meanSignedL0).c_str(),
-        JsonNumber(e.meanSignedL0StdError).c_str(), w.repeatsIdentical ? "true" : "false",
-        i + 1 < r.rows.size() ? "," : "");
+        JsonNumber(e.rmsIrradianceLumRel).c_str(), JsonNumber(e.meanStdError).c_str(),
+        JsonNumber(e.meanStdErrorL0).c_str(), JsonNumber(e.honesty).c_str(),
+        JsonNumber(e.honestyL0).c_str(), JsonNumber(e.honestyIrradiance).c_str(),
+        JsonNumber(e.meanSamples).c_str(), JsonNumber(w.stoppedByTarget).c_str(),
+        JsonNumber(w.measuredWithinTarget).c_str(), JsonNumber(w.stoppedRmsOverTarget).c_str(),
+        JsonNumber(e.meanSignedL0).c_str(), JsonNumber(e.meanSignedL0StdError).c_str(),
+        w.repeatsIdentical ? "true" : "false", i + 1 < r.rows.size() ? "," : "");
   }
   j += "  ],\n  \"throughput\": [\n";
   for (size_t i = 0; i < r.throughput.size(); ++i) {
@@ -1038,6 +1052,38 @@ std::string SpeedupsBlock(const BenchResults& r) {
       parts.c_str(), slopes.c_str());
 }
 
+// Time to equal error with 16 batches (the default before baker version 16) against the default
+// of 4, per scene: what the larger point set per batch buys.
+std::string BatchesBlock(const BenchResults& r) {
+  const double levels[] = {0.05, 0.02, 0.01};
+  std::string md = "| CPU time to a mean error of, 16 batches against the default 4 |";
+  for (double e : levels) md += Format(" %s |", Pct(e, 2).c_str());
+  md += "\n| --- |";
+  for (size_t i = 0; i < std::size(levels); ++i) md += " --- |";
+  md += "\n";
+  bool any = false;
+  for (const SceneInfo& sc : r.scenes) {
+    const std::vector<Point> four = Curve(r, sc.name, "nee_mis_sobol"),
+                             sixteen = Curve(r, sc.name, "nee_mis_sobol_b16");
+    if (four.empty() || sixteen.empty()) continue;
+    md += "| " + SceneTitle(sc.name) + " |";
+    for (double e : levels) {
+      const TimeTo a = TimeToError(sixteen, e), b = TimeToError(four, e);
+      if (a.how == Reach::kNone || b.how == Reach::kNone || a.how == Reach::kBelowAtFirst ||
+          b.how == Reach::kBelowAtFirst) {
+        md += " - |";
+        continue;
+      }
+      md += Format(" %s%.2f× |",
+                   a.how == Reach::kExtrapolated || b.how == Reach::kExtrapolated ? "~" : "",
+                   a.time / b.time);
+      any = true;
+    }
+    md += "\n";
+  }
+  return any ? md : "Not measured.\n";
+}
+
 std::string PresetsBlock(const BenchResults& r) {
   std::string md = "| preset | samples (cap) / depth / target |";
   for (const SceneInfo& sc : r.scenes)
@@ -1075,21 +1121,38 @@ std::string AdaptiveBlock(const BenchResults& r) {
     if (row.group != "adaptive" || row.batches != 64) continue;
     md += Format("| %s | %s | %.0f | %.2f |\n", SceneTitle(row.scene).c_str(),
                  Pct(row.targetRelError, 2).c_str(), row.error.meanSamples,
-                 row.error.rmsL0Rel / row.targetRelError);
+                 row.error.rmsIrradianceLumRel / row.targetRelError);
   }
   return md;
 }
 
 std::string HonestyBlock(const BenchResults& r) {
-  std::vector<double> honesty;
-  for (const BakeRow& row : r.rows)
-    if (row.group == "ladder" && row.config != "naive") honesty.push_back(row.error.honestyL0);
-  if (honesty.empty()) return "Not measured.\n";
-  return Format(
-      "Measured / reported error of L0, over every bake of the sample-count ladders but the naive "
-      "estimator's: median %.2f, from %.2f to %.2f.\n",
-      Median(honesty), *std::min_element(honesty.begin(), honesty.end()),
-      *std::max_element(honesty.begin(), honesty.end()));
+  // Per scene: the spread over every ladder bake but the naive estimator's.
+  std::string md =
+      "| scene | measured / reported irradiance error (`std_error`): median (min to max) | the "
+      "same for L0 (`std_error_l0`) |\n| --- | --- | --- |\n";
+  std::vector<double> all;
+  for (const SceneInfo& s : r.scenes) {
+    std::vector<double> h, l0;
+    for (const BakeRow& row : r.rows)
+      if (row.scene == s.name && row.group == "ladder" && row.config != "naive") {
+        h.push_back(row.error.honesty);
+        l0.push_back(row.error.honestyL0);
+      }
+    if (h.empty()) continue;
+    all.insert(all.end(), h.begin(), h.end());
+    md += Format("| %s | %.2f (%.2f to %.2f) | %.2f (%.2f to %.2f) |\n", SceneTitle(s.name).c_str(),
+                 Median(h), *std::min_element(h.begin(), h.end()),
+                 *std::max_element(h.begin(), h.end()), Median(l0),
+                 *std::min_element(l0.begin(), l0.end()), *std::max_element(l0.begin(), l0.end()));
+  }
+  if (all.empty()) return "Not measured.\n";
+  md += Format(
+      "\nOver every bake of the sample-count ladders but the naive estimator's (%zu bakes): "
+      "median %.2f, from %.2f to %.2f.\n",
+      all.size(), Median(all), *std::min_element(all.begin(), all.end()),
+      *std::max_element(all.begin(), all.end()));
+  return md;
 }
 
 std::string ThroughputBlock(const BenchResults& r) {
@@ -1207,6 +1270,7 @@ std::map<std::string, std::string> DocBlocks(const BenchResults& r, const std::s
   blocks["scaling-memory"] = ScalingMemoryBlock(r);
   blocks["depth"] = DepthBlock(r);
   blocks["settings"] = SettingsBlock(r);
+  blocks["batches"] = BatchesBlock(r);
   return blocks;
 }
 

@@ -152,7 +152,10 @@ absl::StatusOr<BenchResults> ReadResultsJson(const std::string& path) {
     e.maxIrradianceRel = b.Number("irradianceErrorMax");
     e.meanRadianceRel = b.Number("radianceErrorMean");
     e.rmsL0Rel = b.Number("l0ErrorRms");
+    e.rmsIrradianceLumRel = b.Number("irradianceLumErrorRms");
     e.meanStdError = b.Number("stdErrorMean");
+    e.meanStdErrorL0 = b.Number("stdErrorL0Mean");
+    e.honesty = b.Number("honesty");
     e.honestyL0 = b.Number("honestyL0");
     e.honestyIrradiance = b.Number("honestyIrradiance");
     e.meanSamples = b.Number("meanSamples");

@@ -297,7 +297,7 @@ TEST(ResolveSettings, Defaults) {
   EXPECT_EQ(s.sampler, SamplerKind::kSobol);
   EXPECT_TRUE(s.russianRoulette);
   EXPECT_EQ(s.rrMinDepth, 3);
-  EXPECT_EQ(s.batches, 16);
+  EXPECT_EQ(s.batches, 4);
   EXPECT_EQ(s.backfaceFraction, 0.5);
   EXPECT_EQ(SettingsOf(R"({"shOrder": 4})").windowWidth, 5);
 }

@@ -36,6 +36,7 @@ ProbeVolume SmallVolume() {
   v.radiance[2][5] = std::numeric_limits<float>::denorm_min();  // exact bits, not values
   v.validity.assign(n, 1.f);
   v.stdError.assign(n, 0.02f);
+  v.stdErrorL0.assign(n, 0.01f);
   v.sampleCount.assign(n, 256.f);
   v.window = "HANNING";
   v.stats.probes = 11;
@@ -73,6 +74,8 @@ TEST(Checkpoint, RoundTripIsBitExact) {
     EXPECT_EQ(std::memcmp(r.radiance[c].data(), v.radiance[c].data(), 4 * v.radiance[c].size()), 0);
     EXPECT_EQ(r.irradiance[c], v.irradiance[c]);
   }
+  EXPECT_EQ(r.stdError, v.stdError);
+  EXPECT_EQ(r.stdErrorL0, v.stdErrorL0);
   EXPECT_EQ(r.window, "HANNING");
   EXPECT_EQ(r.stats.samples, 2816);
 }
@@ -90,9 +93,11 @@ TEST(Checkpoint, ReadsTheFormerFormatWithZeroWork) {
     std::ifstream in(path, std::ios::binary);
     bytes.assign(std::istreambuf_iterator<char>(in), {});
   }
-  // PBCKPT02 is the same without the work (3 x 8 bytes before the 64-character hash).
-  ASSERT_EQ(bytes.substr(0, 8), "PBCKPT03");
-  std::string old = "PBCKPT02" + bytes.substr(8, bytes.size() - 8 - 24 - 64);
+  // PBCKPT02 is the same without the work (3 x 8 bytes) and the L0 standard errors (a count and
+  // a float per probe) before the 64-character hash.
+  ASSERT_EQ(bytes.substr(0, 8), "PBCKPT04");
+  const size_t l0Bytes = 8 + 4 * v.stdErrorL0.size();
+  std::string old = "PBCKPT02" + bytes.substr(8, bytes.size() - 8 - l0Bytes - 24 - 64);
   old += Sha256Hex(old);
   std::ofstream(path, std::ios::binary | std::ios::trunc) << old;
   auto read = ReadCheckpoint(path, "digest1");
@@ -100,6 +105,7 @@ TEST(Checkpoint, ReadsTheFormerFormatWithZeroWork) {
   EXPECT_EQ(read->done, done);
   EXPECT_EQ(read->work.samples, 0);
   EXPECT_EQ(read->volume.stats.samples, 2816);
+  EXPECT_EQ(read->volume.stdErrorL0, v.stdError);  // the L0 figure then
 }
 
 TEST(Checkpoint, RejectsOtherDigestsAndDamage) {

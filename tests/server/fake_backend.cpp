@@ -47,6 +47,7 @@ absl::StatusOr<ProbeVolume> FakeBake(const BakeJob& job, const BakeOptions& opti
   v.radiance.assign(size_t(v.CoeffCount()), std::vector<float>(size_t(3 * probes), 0.f));
   v.validity.assign(size_t(probes), 0.f);
   v.stdError.assign(size_t(probes), 0.f);
+  v.stdErrorL0.assign(size_t(probes), 0.f);
   v.sampleCount.assign(size_t(probes), 0.f);
   std::vector<uint8_t> done(size_t(probes), 0);
   if (options.resumeFrom && options.resumeDone) {
@@ -92,6 +93,7 @@ absl::StatusOr<ProbeVolume> FakeBake(const BakeJob& job, const BakeOptions& opti
     v.active[size_t(probe)] = 1;
     v.validity[size_t(probe)] = 1.f;
     v.stdError[size_t(probe)] = 0.01f;
+    v.stdErrorL0[size_t(probe)] = 0.005f;
     v.sampleCount[size_t(probe)] = float(job.settings.samplesPerProbe);
     done[size_t(probe)] = 1;
     ++doneCount;

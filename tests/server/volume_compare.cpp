@@ -37,6 +37,7 @@ void ExpectSameVolume(const std::filesystem::path& a, const std::filesystem::pat
     same(x.irradiance[c], y.irradiance[c], "irradiance " + std::to_string(c));
   same(x.validity, y.validity, "validity");
   same(x.stdError, y.stdError, "stdError");
+  same(x.stdErrorL0, y.stdErrorL0, "stdErrorL0");
   same(x.sampleCount, y.sampleCount, "sampleCount");
   for (const auto& [key, value] : va->rawMetadata) {
     if (key == "stats") continue;

@@ -38,6 +38,7 @@ ProbeVolume EmptyVolume(int nx, int ny, int nz, int order, bool irradiance = fal
   if (irradiance) v.irradiance = v.radiance;
   v.validity.assign(n, 1.0f);
   v.stdError.assign(n, 0.0f);
+  v.stdErrorL0.assign(n, 0.0f);
   v.sampleCount.assign(n, 64.0f);
   return v;
 }

@@ -79,7 +79,9 @@ TEST(PyOpenVdb, ReadsGridsValuesTransformAndMetadata) {
     json += Quote(RadianceGridName(c)) + ":\"Vec3SGrid\"," + Quote(IrradianceGridName(c)) +
             ":\"Vec3SGrid\",";
   }
-  json += "\"validity\":\"FloatGrid\",\"std_error\":\"FloatGrid\",\"sample_count\":\"FloatGrid\"}";
+  json +=
+      "\"validity\":\"FloatGrid\",\"std_error\":\"FloatGrid\",\"std_error_l0\":\"FloatGrid\","
+      "\"sample_count\":\"FloatGrid\"}";
   json += std::string(",\"activeVoxels\":") + std::to_string(active) + ",\"voxels\":[";
   // A few active probes, including the first ones that hold the awkward values.
   int listed = 0;
@@ -99,6 +101,8 @@ TEST(PyOpenVdb, ReadsGridsValuesTransformAndMetadata) {
     }
     json += std::string("[\"validity\",") + ijk + "[" + Float(volume.validity[size_t(p)]) + "]],";
     json += std::string("[\"std_error\",") + ijk + "[" + Float(volume.stdError[size_t(p)]) + "]],";
+    json +=
+        std::string("[\"std_error_l0\",") + ijk + "[" + Float(volume.stdErrorL0[size_t(p)]) + "]],";
     json += std::string("[\"sample_count\",") + ijk + "[" + Float(volume.sampleCount[size_t(p)]) +
             "]],";
     ++listed;
@@ -115,7 +119,7 @@ TEST(PyOpenVdb, ReadsGridsValuesTransformAndMetadata) {
   }
   json.pop_back();
   json += "],\"metadata\":{";
-  json += "\"probebake_format\":[\"int\",1],\"sh_order\":[\"int\",2],";
+  json += "\"probebake_format\":[\"int\",2],\"sh_order\":[\"int\",2],";
   json += "\"sh_basis\":[\"str\",\"real-orthonormal-condon-shortley-zpolar\"],";
   json += "\"sh_window\":[\"str\",\"HANNING\"],\"quantity\":[\"str\",\"radiance\"],";
   json += "\"has_irradiance\":[\"bool\",true],\"color_space\":[\"str\",\"linear-rec709\"],";

@@ -40,6 +40,7 @@ ProbeVolume MakeTestVolume(const TestVolumeSpec& spec) {
   v.active.assign(n, 1);
   v.validity.assign(n, 1.0f);
   v.stdError.assign(n, 0.0f);
+  v.stdErrorL0.assign(n, 0.0f);
   v.sampleCount.assign(n, 0.0f);
   int64_t activeCount = 0, invalidCount = 0;
   for (size_t p = 0; p < n; ++p) {
@@ -57,6 +58,7 @@ ProbeVolume MakeTestVolume(const TestVolumeSpec& spec) {
       ++invalidCount;
     }
     v.stdError[p] = std::abs(HashFloat(spec.seed + 1, p)) * 0.01f;
+    v.stdErrorL0[p] = std::abs(HashFloat(spec.seed + 2, p)) * 0.01f;
     v.sampleCount[p] = float(256 + (Hash(spec.seed + 2, p) % 1024));
   }
   const int coefficients = v.CoeffCount();

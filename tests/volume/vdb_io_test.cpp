@@ -56,6 +56,7 @@ void ExpectSameVolume(const ProbeVolume& expected, const ProbeVolume& got) {
   }
   ExpectSameBits(expected.validity, got.validity, "validity");
   ExpectSameBits(expected.stdError, got.stdError, "stdError");
+  ExpectSameBits(expected.stdErrorL0, got.stdErrorL0, "stdErrorL0");
   ExpectSameBits(expected.sampleCount, got.sampleCount, "sampleCount");
   EXPECT_EQ(expected.window, got.window);
   EXPECT_EQ(expected.stats.wallSeconds, got.stats.wallSeconds);
@@ -156,7 +157,7 @@ TEST(VdbIo, RawMetadataHoldsEveryKeyAsText) {
   const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
   ASSERT_TRUE(read.ok()) << read.status();
   const std::map<std::string, std::string> expected = {
-      {"probebake_format", "1"},
+      {"probebake_format", "2"},
       {"sh_order", "2"},
       {"sh_basis", "real-orthonormal-condon-shortley-zpolar"},
       {"sh_window", "HANNING"},
@@ -246,6 +247,7 @@ TEST(VdbIo, RvalueOverloadWritesTheSameAndReleasesPlanes) {
   EXPECT_TRUE(consumed.irradiance.empty());
   EXPECT_TRUE(consumed.validity.empty());
   EXPECT_TRUE(consumed.stdError.empty());
+  EXPECT_TRUE(consumed.stdErrorL0.empty());
   EXPECT_TRUE(consumed.sampleCount.empty());
   EXPECT_TRUE(consumed.radianceStdError.empty()) << consumed.radianceStdError.size();
   EXPECT_TRUE(consumed.autoWindowT.empty()) << consumed.autoWindowT.size();
@@ -301,7 +303,8 @@ TEST(VdbIo, WritingAddsAboutOneGridOfMemoryNotACopy) {
   const ProbeVolume volume = MakeTestVolume(spec);
   size_t volumeBytes = 0;
   for (const auto& plane : volume.radiance) volumeBytes += 4 * plane.size();
-  volumeBytes += 4 * (volume.validity.size() + volume.stdError.size() + volume.sampleCount.size());
+  volumeBytes += 4 * (volume.validity.size() + volume.stdError.size() + volume.stdErrorL0.size() +
+                      volume.sampleCount.size());
   TempDir dir;
   for (const bool consume : {false, true}) {
     SCOPED_TRACE(consume ? "rvalue overload" : "const overload");

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -43,7 +44,7 @@ class VdbLayout : public ::testing::Test {
     std::vector<std::string> names;
     for (int c = 0; c < volume_.CoeffCount(); ++c) names.push_back(RadianceGridName(c));
     for (int c = 0; c < volume_.CoeffCount(); ++c) names.push_back(IrradianceGridName(c));
-    names.insert(names.end(), {"validity", "std_error", "sample_count"});
+    names.insert(names.end(), {"validity", "std_error", "std_error_l0", "sample_count"});
     return names;
   }
 
@@ -139,6 +140,8 @@ TEST_F(VdbLayout, GridsTransformAndActiveVoxelsFollowTheSpec) {
       values = &volume_.validity;
     } else if (name == "std_error") {
       values = &volume_.stdError;
+    } else if (name == "std_error_l0") {
+      values = &volume_.stdErrorL0;
     } else {
       values = &volume_.sampleCount;
     }
@@ -214,7 +217,7 @@ TEST_F(VdbLayout, FileMetadataKeysTypesAndValues) {
     ASSERT_TRUE(value) << key.name;
     EXPECT_EQ(value->typeName(), key.type) << key.name;
   }
-  EXPECT_EQ(meta->metaValue<int32_t>("probebake_format"), 1);
+  EXPECT_EQ(meta->metaValue<int32_t>("probebake_format"), 2);
   EXPECT_EQ(meta->metaValue<int32_t>("sh_order"), 2);
   EXPECT_EQ(meta->metaValue<std::string>("sh_basis"), "real-orthonormal-condon-shortley-zpolar");
   EXPECT_EQ(meta->metaValue<std::string>("sh_window"), "HANNING");
@@ -297,6 +300,23 @@ TEST_F(VdbLayout, ReaderRejectsBrokenFilesNamingTheGridOrKey) {
       grids.back()->setTransform(rotated);
     }
     expectError(WriteAndRead(grids, *meta), "validity", "transform");
+  }
+  {  // a format this reader does not know
+    vdb::MetaMap::Ptr m = meta->copyMeta();
+    m->removeMeta("probebake_format");
+    m->insertMeta("probebake_format", vdb::Int32Metadata(3));
+    expectError(WriteAndRead(good, *m), "probebake_format", "this reader knows 1 and 2");
+  }
+  {  // format 1 has no std_error_l0 grid: one is not part of it
+    vdb::MetaMap::Ptr m = meta->copyMeta();
+    m->removeMeta("probebake_format");
+    m->insertMeta("probebake_format", vdb::Int32Metadata(1));
+    expectError(WriteAndRead(good, *m), "std_error_l0", "not part of probe volume format 1");
+  }
+  {  // format 2 without its std_error_l0 grid
+    vdb::GridPtrVec grids = good;
+    grids.erase(std::find(grids.begin(), grids.end(), Find(good, "std_error_l0")));
+    expectError(WriteAndRead(grids, *meta), "std_error_l0", "missing");
   }
   {  // an extra grid
     vdb::GridPtrVec grids = good;
@@ -394,10 +414,6 @@ TEST_F(VdbLayout, ReaderRejectsBrokenFilesNamingTheGridOrKey) {
       ASSERT_TRUE(read.ok()) << read.status();
       EXPECT_EQ(read->volume.grid.spacing.x, 0.5 + 1e-15);  // the metadata is authoritative
     }
-    m = meta->copyMeta();
-    m->removeMeta("probebake_format");
-    m->insertMeta("probebake_format", vdb::Int32Metadata(2));
-    expectError(WriteAndRead(good, *m), "probebake_format", "2");
   }
 }
 
@@ -483,6 +499,42 @@ TEST_F(VdbLayout, CountsComeFromTheActiveBoxWithoutGridCounts) {
   ASSERT_TRUE(read.ok()) << read.status();
   for (int a = 0; a < 3; ++a) EXPECT_EQ(read->volume.grid.counts[a], volume_.grid.counts[a]);
   EXPECT_EQ(read->volume.active, volume_.active);
+}
+
+TEST_F(VdbLayout, ReadsFormatOneFiles) {
+  // A format-1 file: the same grids but std_error_l0, its std_error holding the L0 figure
+  // (docs/volume-format.md, migration notes). It reads as that figure in stdErrorL0, with the
+  // irradiance figure, which format 1 did not record, unknown (+inf) at every active probe.
+  vdb::GridPtrVec grids;
+  vdb::MetaMap::Ptr meta;
+  ReadAll(path_, &grids, &meta);
+  grids.erase(std::find(grids.begin(), grids.end(), Find(grids, "std_error_l0")));
+  meta->removeMeta("probebake_format");
+  meta->insertMeta("probebake_format", vdb::Int32Metadata(1));
+  const std::string path = dir_.File("format1.vdb");
+  vdb::io::File(path).write(grids, *meta);
+  const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->format, 1);
+  const ProbeVolume& v = read->volume;
+  EXPECT_EQ(v.active, volume_.active);
+  EXPECT_EQ(v.radiance, volume_.radiance);
+  EXPECT_EQ(v.stdErrorL0, volume_.stdError);  // the file's std_error grid
+  ASSERT_EQ(v.stdError.size(), volume_.active.size());
+  for (size_t p = 0; p < v.stdError.size(); ++p) {
+    if (volume_.active[p]) {
+      EXPECT_TRUE(std::isinf(v.stdError[p])) << p;
+    } else {
+      EXPECT_EQ(v.stdError[p], 0.0f) << p;
+    }
+  }
+  // Written back, it is a format-2 file that says as much.
+  const std::string again = dir_.File("format2.vdb");
+  PB_ASSERT_OK(WriteProbeVolume(again, v, read->meta));
+  const absl::StatusOr<ProbeVolumeFile> reread = ReadProbeVolume(again);
+  ASSERT_TRUE(reread.ok()) << reread.status();
+  EXPECT_EQ(reread->format, 2);
+  EXPECT_EQ(reread->volume.stdErrorL0, volume_.stdError);
 }
 
 }  // namespace

@@ -22,8 +22,8 @@ using testing::TestVolumeSpec;
 constexpr double kMiB = 1024.0 * 1024.0;
 
 double VolumeMiB(const ProbeVolume& v) {
-  size_t bytes =
-      v.active.size() + 4 * (v.validity.size() + v.stdError.size() + v.sampleCount.size());
+  size_t bytes = v.active.size() + 4 * (v.validity.size() + v.stdError.size() +
+                                        v.stdErrorL0.size() + v.sampleCount.size());
   for (const auto& plane : v.radiance) bytes += 4 * plane.size();
   for (const auto& plane : v.irradiance) bytes += 4 * plane.size();
   return double(bytes) / kMiB;

@@ -103,7 +103,7 @@ TEST_F(Inspect, CountsGridsAndStatistics) {
   EXPECT_EQ(report->probes, active_);
   EXPECT_EQ(report->invalidProbes, invalid_);
   EXPECT_GT(report->fileBytes, 0);
-  ASSERT_EQ(report->grids.size(), size_t(2 * volume_.CoeffCount() + 3));
+  ASSERT_EQ(report->grids.size(), size_t(2 * volume_.CoeffCount() + 4));
 
   for (const GridReport& g : report->grids) {
     SCOPED_TRACE(g.name);
@@ -116,9 +116,10 @@ TEST_F(Inspect, CountsGridsAndStatistics) {
       channels = 3;
       EXPECT_EQ(g.valueType, "vec3s");
     } else {
-      values = g.name == "validity"    ? &volume_.validity
-               : g.name == "std_error" ? &volume_.stdError
-                                       : &volume_.sampleCount;
+      values = g.name == "validity"       ? &volume_.validity
+               : g.name == "std_error"    ? &volume_.stdError
+               : g.name == "std_error_l0" ? &volume_.stdErrorL0
+                                          : &volume_.sampleCount;
       EXPECT_EQ(g.valueType, "float");
     }
     ASSERT_EQ(g.channels, channels);
@@ -273,7 +274,7 @@ TEST_F(Inspect, JsonParsesWithPythonAndHoldsTheFigures) {
       "assert d['metadata']['stats']['probes']==int(sys.argv[2]), d['metadata']['stats']\n"
       "assert d['metadata']['grid_counts']==[3,4,5]\n"
       "names=[g['name'] for g in d['grids']]\n"
-      "assert len(names)==21 and 'radiance_sh_08' in names and 'validity' in names, names\n"
+      "assert len(names)==22 and 'radiance_sh_08' in names and 'validity' in names, names\n"
       "g=[g for g in d['grids'] if g['name']=='validity'][0]\n"
       "assert len(g['mean'])==1 and g['activeVoxels']==int(sys.argv[2]), g\n"
       "print('ok')\n";
@@ -350,7 +351,7 @@ TEST_F(Inspect, VolumeWithoutBakedProbes) {
   ASSERT_TRUE(report.ok()) << report.status();
   EXPECT_EQ(report->probes, 0);
   EXPECT_EQ(report->invalidProbes, 0);
-  ASSERT_EQ(report->grids.size(), 12u);
+  ASSERT_EQ(report->grids.size(), 13u);
   for (const GridReport& g : report->grids) {
     EXPECT_EQ(g.activeVoxels, 0) << g.name;
     EXPECT_EQ(g.mean[0], 0) << g.name;

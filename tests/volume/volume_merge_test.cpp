@@ -85,6 +85,7 @@ TEST(VolumeMerge, ShardsMergeIntoTheWholeGridBitForBit) {
   }
   ExpectSamePlane(m.validity, all.validity, "validity");
   ExpectSamePlane(m.stdError, all.stdError, "std_error");
+  ExpectSamePlane(m.stdErrorL0, all.stdErrorL0, "std_error_l0");
   ExpectSamePlane(m.sampleCount, all.sampleCount, "sample_count");
   EXPECT_EQ(m.stats.probes, all.stats.probes);
   EXPECT_EQ(m.stats.samples, all.stats.samples);
@@ -156,6 +157,15 @@ TEST(VolumeMerge, RefusesPartsThatDoNotBelongTogether) {
   EXPECT_NE(std::string(bad.status().message()).find("with different values"), std::string::npos)
       << bad.status();
   EXPECT_FALSE(MergeProbeVolumes({}).ok());
+
+  // A part read from a format-1 file comes from another baker.
+  std::vector<VolumePart> formats = ReadParts({dir.File("a.vdb"), dir.File("b.vdb")});
+  ASSERT_EQ(formats.size(), 2u);
+  formats[1].file.format = kProbeVolumeFormat1;
+  const absl::StatusOr<ProbeVolumeFile> mixed = MergeProbeVolumes(std::move(formats));
+  ASSERT_FALSE(mixed.ok());
+  EXPECT_NE(std::string(mixed.status().message()).find("probebake_format"), std::string::npos)
+      << mixed.status();
 
   // Two small parts a million steps apart would make a dense grid of millions of empty probes.
   std::vector<VolumePart> apart = ReadParts({dir.File("a.vdb"), dir.File("b.vdb")});

@@ -275,6 +275,7 @@ ProbeVolume NewVolume(const BakeJob& job, const BakeOptions& options,
   volume.active.assign(probeCount, 0);
   volume.validity.assign(probeCount, 0.0f);
   volume.stdError.assign(probeCount, 0.0f);
+  volume.stdErrorL0.assign(probeCount, 0.0f);
   volume.sampleCount.assign(probeCount, 0.0f);
   volume.radiance.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
   if (settings.irradiance)
@@ -466,8 +467,8 @@ class ProbeBaker {
       if (!TraceBatches(start, next, roundEnd, estimate) || Stopped()) return false;
       next = roundEnd;
       if (adaptive) {
-        const bool met =
-            AdaptiveErrorBound(estimate->RelativeError(next), next) <= settings_.targetRelError;
+        const bool met = AdaptiveErrorBound(estimate->Relative(next).irradiance, next) <=
+                         settings_.targetRelError;
         if (met && metBefore) break;
         metBefore = met;
       }

@@ -68,29 +68,49 @@ std::vector<double> ProbeEstimate::CoefficientErrors(int batches) const {
   return var;
 }
 
-double ProbeEstimate::RelativeError(int batches) const {
+ProbeEstimate::RelativeErrors ProbeEstimate::Relative(int batches) const {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
   const int64_t n = Samples(batches);
-  auto lumL0 = [](const double* rgb) { return Luminance(Vec3d{rgb[0], rgb[1], rgb[2]}); };
-  double sampled = 0;
-  for (int b = 0; b < batches; ++b) sampled += lumL0(&sums_[size_t(b) * 3 * coeffs_]);
-  sampled = n > 0 ? sampled / double(n) : 0.0;
-  const double mean = sampled + lumL0(exact_.data());
+  const auto luminance = [](const double* rgb) { return Luminance(Vec3d{rgb[0], rgb[1], rgb[2]}); };
+  // Per coefficient: the sampled pooled mean and the batch spread of luminance.
+  std::vector<double> sampled(coeffs_, 0.0), var(coeffs_, 0.0);
   int used = 0;
-  double var = 0;
   for (int b = 0; b < batches; ++b) {
     if (counts_[b] == 0) continue;
-    const double mb = lumL0(&sums_[size_t(b) * 3 * coeffs_]) / double(counts_[b]);
-    const double wb = double(counts_[b]) / double(n);
-    var += wb * wb * (mb - sampled) * (mb - sampled);
     ++used;
+    const double* sum = &sums_[size_t(b) * 3 * coeffs_];
+    for (int i = 0; i < coeffs_; ++i) sampled[i] += luminance(sum + 3 * i);
   }
-  if (used < 2) return std::numeric_limits<double>::infinity();
-  var *= double(used) / double(used - 1);
-  const double se = std::sqrt(var);
+  if (used < 2) return {kInf, kInf};
+  for (double& m : sampled) m /= double(n);
+  for (int b = 0; b < batches; ++b) {
+    if (counts_[b] == 0) continue;
+    const double* sum = &sums_[size_t(b) * 3 * coeffs_];
+    const double wb = double(counts_[b]) / double(n);
+    for (int i = 0; i < coeffs_; ++i) {
+      const double d = luminance(sum + 3 * i) / double(counts_[b]) - sampled[i];
+      var[i] += wb * wb * d * d;
+    }
+  }
+  for (double& v : var) v *= double(used) / double(used - 1);
+  // sum_i w_i x_i over the coefficients with w_i = A_l(i)^2.
+  double errorSq = 0, sampledSq = 0, meanSq = 0;
+  for (int l = 0, i = 0; i < coeffs_; ++l) {
+    const double a = IrradianceBandFactor(l);
+    for (int m = -l; m <= l; ++m, ++i) {
+      const double mean = sampled[i] + luminance(&exact_[3 * i]);
+      errorSq += a * a * var[i];
+      sampledSq += a * a * sampled[i] * sampled[i];
+      meanSq += a * a * mean * mean;
+    }
+  }
   // No spread. All batches black while light could be found: no evidence (0/0 is not 0).
-  if (se == 0)
-    return sampled == 0 && sampledMayBeNonZero_ ? std::numeric_limits<double>::infinity() : 0;
-  return mean != 0 ? se / std::abs(mean) : std::numeric_limits<double>::infinity();
+  const auto relative = [this](double se, double sampledSize, double meanSize) {
+    if (se == 0) return sampledSize == 0 && sampledMayBeNonZero_ ? kInf : 0.0;
+    return meanSize != 0 ? se / meanSize : kInf;
+  };
+  return {relative(std::sqrt(errorSq), sampledSq, std::sqrt(meanSq)),
+          relative(std::sqrt(var[0]), sampled[0], std::abs(sampled[0] + luminance(exact_.data())))};
 }
 
 ProbeFinisher::ProbeFinisher(const BakeSettings& settings) : settings_(settings) {
@@ -143,7 +163,9 @@ double ProbeFinisher::Finish(const ProbeEstimate& estimate, int batches, int64_t
       for (int ch = 0; ch < 3; ++ch)
         volume->radianceStdError[c][3 * probe + ch] = float(se[3 * c + ch]);
   }
-  volume->stdError[probe] = float(estimate.RelativeError(batches));
+  const ProbeEstimate::RelativeErrors errors = estimate.Relative(batches);
+  volume->stdError[probe] = float(errors.irradiance);
+  volume->stdErrorL0[probe] = float(errors.l0);
   volume->sampleCount[probe] = float(estimate.Samples(batches));
   return autoT;
 }
@@ -161,6 +183,7 @@ ProbeVolume EmptyLike(const ProbeVolume& v) {
   out.radianceStdError.assign(v.radianceStdError.size(), std::vector<float>(planeSize, 0.0f));
   out.autoWindowT.assign(v.autoWindowT.size(), 0.0f);
   out.stdError.assign(v.stdError.size(), 0.0f);
+  out.stdErrorL0.assign(v.stdErrorL0.size(), 0.0f);
   out.sampleCount.assign(v.sampleCount.size(), 0.0f);
   return out;
 }
@@ -180,6 +203,7 @@ void CopyProbe(const ProbeVolume& from, int64_t probe, ProbeVolume* to) {
   if (!to->autoWindowT.empty() && from.autoWindowT.size() == to->autoWindowT.size())
     to->autoWindowT[probe] = from.autoWindowT[probe];
   to->stdError[probe] = from.stdError[probe];
+  to->stdErrorL0[probe] = from.stdErrorL0[probe];
   to->sampleCount[probe] = from.sampleCount[probe];
 }
 

@@ -1,13 +1,23 @@
-// From sample sums to a stored probe: the mean SH coefficients, the standard error from the
+// From sample sums to a stored probe: the mean SH coefficients, the standard errors from the
 // independent batches, irradiance and its window (docs/spherical-harmonics.md,
 // docs/accuracy-and-speed.md).
 //
-// Error estimate: batch b is an independent randomisation (its own scrambled Sobol stream, or its
-// own random numbers) of n_b samples with sum S_b, so its mean m_b = S_b / n_b is an unbiased,
-// independent estimate. The probe's estimate is the pooled mean m = sum S_b / N (N = sum n_b) and
+// Error estimates: batch b is an independent randomisation (its own rotated point set and
+// scrambled Sobol stream, or its own random numbers) of n_b samples with sum S_b, so its mean
+// m_b = S_b / n_b is an unbiased, independent estimate of every coefficient. The probe's estimate
+// is the pooled mean m = sum S_b / N (N = sum n_b) and, per coefficient,
 //   Var(m) ~= B / (B - 1) * sum_b (n_b / N)^2 (m_b - m)^2,
-// which is the textbook s^2 / B for equal batches. The stored std_error is sqrt(Var) / |m| of the
-// luminance of the L0 coefficient (exact delta-light terms add to m and not to the variance).
+// which is the textbook s^2 / B for equal batches. Exact delta-light terms add to m and not to
+// the variance. Two relative figures, both of luminance (the coefficients' RGB weighted by
+// Luminance, so that the channels' covariance counts):
+//   - std_error: the relative standard error of the irradiance reconstructed from the
+//     coefficients, RMS over the sphere of normals, relative to the RMS irradiance. The
+//     irradiance is E(n) = sum_i A_l(i) c_i Y_i(n) (A_l the clamped cosine's band factors,
+//     unwindowed), so by orthonormality the mean of its squared error over normals is
+//     sum_i A_l^2 Var(c_i) / 4 pi, and of its square sum_i A_l^2 c_i^2 / 4 pi:
+//       std_error = sqrt(sum_i A_l^2 Var(c_i)) / sqrt(sum_i A_l^2 c_i^2).
+//     It covers every band the irradiance holds (l <= 2 carry almost all of it), not only L0.
+//   - std_error_l0: sqrt(Var(c_0)) / |c_0|, the figure of format 1.
 // Batches that all saw nothing carry no evidence of the error: a dim probe lit through a small
 // opening reads 0 with no spread until a path finds the opening. Its error is then unknown
 // (+infinity), unless nothing sampled can ever be non-zero (ProbeEstimate's `sampledMayBeNonZero`).
@@ -45,10 +55,14 @@ class ProbeEstimate {
   std::vector<double> Mean(int batches) const;
   // Standard error of every coefficient and channel (coeffCount x 3), same estimator as below.
   std::vector<double> CoefficientErrors(int batches) const;
-  // Relative standard error of luminance(L0) from the first `batches` batches; +infinity with
-  // fewer than 2 batches, with a zero mean, or when every sample was zero although the scene has
-  // light to find; 0 when every batch agrees otherwise (a uniform sky, an exact probe).
-  double RelativeError(int batches) const;
+  // The relative standard errors of the first `batches` batches (see above). Each is +infinity
+  // with fewer than 2 batches, with a zero mean, or when every sample was zero although the scene
+  // has light to find; 0 when every batch agrees otherwise (an exact probe).
+  struct RelativeErrors {
+    double irradiance = 0;  // std_error
+    double l0 = 0;          // std_error_l0
+  };
+  RelativeErrors Relative(int batches) const;
 
  private:
   int coeffs_;
@@ -65,8 +79,8 @@ class ProbeFinisher {
   // for AUTO a summary of the per-probe heat windows (AutoWindowSummary).
   std::string WindowName() const;
   // Stores the estimate of the first `batches` batches as probe `probe` of `volume` (radiance,
-  // irradiance and window when requested, std_error, sample_count). Returns the AUTO window's
-  // heat parameter t chosen for this probe (0: left unwindowed; 0 for other windows).
+  // irradiance and window when requested, std_error, std_error_l0, sample_count). Returns the AUTO
+  // window's heat parameter t chosen for this probe (0: left unwindowed; 0 for other windows).
   double Finish(const ProbeEstimate& estimate, int batches, int64_t probe,
                 ProbeVolume* volume) const;
 

@@ -13,6 +13,7 @@
 #include "probebake/math/frame.h"
 #include "probebake/sampling/hash.h"
 #include "probebake/sampling/sampler.h"
+#include "probebake/sampling/spherical_fibonacci.h"
 #include "probebake/sampling/warps.h"
 #include "probebake/sh/sh_basis.h"
 #include "ray_offset.h"
@@ -22,6 +23,11 @@ namespace {
 
 constexpr double kInvPi = std::numbers::inv_pi;
 constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// Whether a sampler draws the probe's directions and light points from rotated spherical
+// Fibonacci sets.
+template <typename S>
+inline constexpr bool kRotatedSetsAtProbe = std::is_same_v<S, SobolSampler>;
 
 // Dimension sets drawn at the probe (direction, light choice, light point) and at each
 // scattering vertex (VertexNumbers).
@@ -71,37 +77,60 @@ int SortSlots(const uint16_t* keys, int n, int buckets, uint16_t* slot) {
   return placed;
 }
 
-// Packets want rays that are neighbours on the sphere; Sobol points in index order are spread
-// over the whole sphere on purpose. So the rays from the probe are put in packets in the order
-// of a counting sort by cell: the probe directions by their cell of 2^kCellBits x 2^kCellBits in
-// the (z, phi) square they are drawn from (SampleUniformSphere), along a Morton curve (an aligned
-// chunk of 2^(2 kCellBits) Sobol points is a (0, 2 kCellBits, 2)-net: one point in each); the
-// shadow rays by light and by octahedral cell of their direction.
+// Packets want rays that are neighbours on the sphere; the probe's directions in sample order
+// are spread over the whole sphere on purpose. So the rays from the probe are put in packets in
+// the order of a counting sort by cell: the probe directions by their cell of 2^kCellBits bands of
+// z by 2^kCellBits steps of azimuth (DirectionCell), along a Morton curve; the shadow rays by light
+// and by a coarser cell of their direction in the octahedral map of the sphere.
 template <int kCellBits>
 [[gnu::always_inline]] inline uint32_t CellIndex(double x) {  // x in [0, 1]
   return std::min(uint32_t(x * (1 << kCellBits)), (1u << kCellBits) - 1);
 }
 
+// The cell (*cx, *cy) of d's octahedral map onto [0, 1]^2 (2^kCellBits cells a side).
 template <int kCellBits>
-[[gnu::always_inline]] inline uint16_t DirectionCell(const Vec2d& u) {
-  return uint16_t(MortonInterleave(CellIndex<kCellBits>(u.x), CellIndex<kCellBits>(u.y)));
-}
-
-template <int kCellBits>
-[[gnu::always_inline]] inline uint16_t ShadowCell(const Vec3d& d, uint32_t light) {
-  // Octahedral map of the direction, then cells of 2^(kCellBits - 1) squared per light.
-  const double l1 = std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z);
-  const double inv = 1 / l1;
+[[gnu::always_inline]] inline void OctahedralCell(const Vec3d& d, uint32_t* cx, uint32_t* cy) {
+  const double inv = 1 / (std::fabs(d.x) + std::fabs(d.y) + std::fabs(d.z));
   double ox = d.x * inv, oy = d.y * inv;
   if (d.z < 0) {
     const double fx = (1 - std::fabs(oy)) * (ox < 0 ? -1 : 1);
     oy = (1 - std::fabs(ox)) * (oy < 0 ? -1 : 1);
     ox = fx;
   }
+  *cx = CellIndex<kCellBits>(0.5 * (ox + 1));
+  *cy = CellIndex<kCellBits>(0.5 * (oy + 1));
+}
+
+// d's cell in (z, azimuth): equal-height bands of z (equal areas) by equal steps of the "diamond
+// angle", a monotone stand-in for the azimuth in [0, 4) without atan2. The probe's directions are
+// spherical Fibonacci sets, whose points climb z along a spiral; packets from these cells took
+// fewer Embree traversal steps than packets from octahedral cells (docs/performance-history.md).
+// The cells are part of the baker's bits: Embree's answer for a ray can differ in its last bits
+// with the rays that share its packet (seen in a mesh of 140k triangles, not in small ones), and
+// the packing depends on the probe's samples alone, never on threads or sharding.
+template <int kCellBits>
+[[gnu::always_inline]] inline uint16_t DirectionCell(const Vec3d& d) {
+  const double ax = std::fabs(d.x), ay = std::fabs(d.y), sum = ax + ay;
+  double diamond = 0;
+  if (sum > 0) {
+    const double t = ay / sum;  // 0 on the x axis, 1 on the y axis
+    if (d.y >= 0) {
+      diamond = d.x >= 0 ? t : 2 - t;
+    } else {
+      diamond = d.x < 0 ? 2 + t : 4 - t;
+    }
+  }
+  return uint16_t(MortonInterleave(CellIndex<kCellBits>(0.5 * (1 - d.z)),
+                                   CellIndex<kCellBits>(0.25 * diamond)));
+}
+
+template <int kCellBits>
+[[gnu::always_inline]] inline uint16_t ShadowCell(const Vec3d& d, uint32_t light) {
+  // Cells of 2^(kCellBits - 1) squared per group of lights.
   constexpr int kHalf = kCellBits - 1;
   constexpr uint32_t kLightGroups = 4;  // 4 x 2^(2 kHalf) = 2^(2 kCellBits) buckets
-  const uint32_t cx = CellIndex<kCellBits>(0.5 * (ox + 1)) >> 1;
-  const uint32_t cy = CellIndex<kCellBits>(0.5 * (oy + 1)) >> 1;
+  uint32_t cx, cy;
+  OctahedralCell<kHalf>(d, &cx, &cy);
   return uint16_t(((light % kLightGroups) << (2 * kHalf)) | MortonInterleave(cx, cy));
 }
 
@@ -425,8 +454,15 @@ bool ProbeIntegrator::TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t fi
   std::vector<S> samplers;
   samplers.reserve(work.size());
   int64_t count = 0;  // samples of all the batches, traced as one run
+  // Sobol: each batch's probe directions and probe light points, interleaved in one rotated
+  // spherical Fibonacci set of twice its samples.
+  std::vector<RotatedSphericalFibonacci> atProbe;
+  if constexpr (kRotatedSetsAtProbe<S>) atProbe.reserve(work.size());
   for (size_t k = 0; k < work.size(); ++k) {
-    samplers.emplace_back(settings_.seed, Hash(probeKey, uint64_t(firstBatch + k)));
+    const uint64_t stream = Hash(probeKey, uint64_t(firstBatch + k));
+    samplers.emplace_back(settings_.seed, stream);
+    if constexpr (kRotatedSetsAtProbe<S>)
+      atProbe.emplace_back(2 * uint64_t(work[k].count), settings_.seed, stream);
     count += work[k].count;
   }
   // One group per thread, kept: a large one zeroed anew for every call costs a bake a visible
@@ -457,7 +493,7 @@ bool ProbeIntegrator::TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t fi
       group.batch[j] = uint32_t(cursor.batch);
       group.index[j] = cursor.index;
     }
-    StartAtProbe<kMedium>(probe, std::span<S>(samplers), &group, &local);
+    StartAtProbe<kMedium>(probe, std::span<S>(samplers), atProbe, &group, &local);
     TraceWaves<kMedium>(probe, std::span<S>(samplers), &group, &local);
     AddToSums<kMedium>(probe, group, work);
     local.samples += group.n;
@@ -467,8 +503,9 @@ bool ProbeIntegrator::TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t fi
 }
 
 template <bool kMedium, int kWidth, typename S>
-void ProbeIntegrator::StartAtProbe(const Probe& probe, std::span<S> samplers, Group<kWidth>* g,
-                                   TraceCounters* counters) const {
+void ProbeIntegrator::StartAtProbe(const Probe& probe, std::span<S> samplers,
+                                   std::span<const RotatedSphericalFibonacci> atProbe,
+                                   Group<kWidth>* g, TraceCounters* counters) const {
   // Sort keys for the packets (groups of one have no use for them). Zeroed only because GCC
   // cannot see that the loop below sets the n entries SortSlots reads.
   uint16_t hitCell[kWidth] = {};
@@ -497,8 +534,16 @@ void ProbeIntegrator::StartAtProbe(const Probe& probe, std::span<S> samplers, Gr
       });
       if (lightSampling_) lights_.Prefetch(g->vertex[j].light);
     }
-    g->wi[j] = SampleUniformSphere(uDirection);
-    if constexpr (kWidth > 1) hitCell[j] = DirectionCell<kCellBits>(uDirection);
+    if constexpr (kRotatedSetsAtProbe<S>) {
+      // The sampler's direction and light point sets are left unused.
+      const RotatedSphericalFibonacci& set = atProbe[g->batch[j]];
+      const uint64_t i = uint64_t(g->index[j]);
+      g->wi[j] = set.Point(2 * i);
+      uLight = InvertUniformSphereSample(set.Point(2 * i + 1));
+    } else {
+      g->wi[j] = SampleUniformSphere(uDirection);
+    }
+    if constexpr (kWidth > 1) hitCell[j] = DirectionCell<kCellBits>(g->wi[j]);
     PathState& s = g->path[j];
     s.radiance = {};
     s.beta = {1, 1, 1};

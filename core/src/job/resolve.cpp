@@ -67,9 +67,12 @@ BakeSettings ResolveSettings(const v1::BakeSettings& s) {
                                                            : SamplerKind::kSobol;
   r.russianRoulette = s.has_russian_roulette() ? s.russian_roulette() : true;
   r.rrMinDepth = s.has_rr_min_depth() ? s.rr_min_depth() : 3;
-  // Adaptive probes may stop after any round of batches, so the batch is the granularity of
-  // their sample counts: 64 batches let an easy probe stop at 8/64 of the cap, not at 8/16.
-  r.batches = s.has_batches() ? s.batches() : (r.targetRelError > 0 ? 64 : 16);
+  // Few batches keep each one's point set large, which is where its quasi-Monte Carlo accuracy
+  // lies (core/src/bake/probe_integrator.h); 4 still give a probe's std_error to about +-30%, since
+  // it pools every coefficient's spread (docs/accuracy-and-speed.md). Adaptive probes may stop
+  // after any round of batches, so there the batch is the granularity of their sample counts: 64
+  // batches let an easy probe stop at 10/64 of the cap.
+  r.batches = s.has_batches() ? s.batches() : (r.targetRelError > 0 ? 64 : 4);
   r.backfaceFraction = s.has_backface_fraction() ? s.backface_fraction() : 0.5;
   return r;
 }

@@ -142,6 +142,9 @@ absl::Status ValidateVolume(const ProbeVolume& volume) {
   if (volume.stdError.size() != probes) {
     return sizeError("volume.stdError", volume.stdError.size(), probes);
   }
+  if (volume.stdErrorL0.size() != probes) {
+    return sizeError("volume.stdErrorL0", volume.stdErrorL0.size(), probes);
+  }
   if (volume.sampleCount.size() != probes) {
     return sizeError("volume.sampleCount", volume.sampleCount.size(), probes);
   }

@@ -208,10 +208,12 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
 
   int32_t format = 0;
   PB_RETURN_IF_ERROR(meta.Get(kKeyFormat, &format));
-  if (format != kProbeVolumeFormat) {
+  if (format != kProbeVolumeFormat && format != kProbeVolumeFormat1) {
     return meta.Error(kKeyFormat, std::to_string(format) + ", this reader knows " +
+                                      std::to_string(kProbeVolumeFormat1) + " and " +
                                       std::to_string(kProbeVolumeFormat));
   }
+  result.format = format;
   PB_RETURN_IF_ERROR(meta.Expect(kKeyShBasis, kShBasis));
   PB_RETURN_IF_ERROR(meta.Expect(kKeyQuantity, kQuantity));
   PB_RETURN_IF_ERROR(meta.Expect(kKeyColorSpace, kColorSpace));
@@ -248,9 +250,10 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
   if (hasIrradiance) {
     for (int c = 0; c < coefficients; ++c) expected.push_back({IrradianceGridName(c), true});
   }
-  for (const char* name : {kValidityGridName, kStdErrorGridName, kSampleCountGridName}) {
-    expected.push_back({name, false});
-  }
+  expected.push_back({kValidityGridName, false});
+  expected.push_back({kStdErrorGridName, false});
+  if (format != kProbeVolumeFormat1) expected.push_back({kStdErrorL0GridName, false});
+  expected.push_back({kSampleCountGridName, false});
   std::map<std::string, vdb::GridBase::Ptr> headers;  // metadata and transform only
   const vdb::GridPtrVecPtr allHeaders = file->readAllGridMetadata();
   for (const vdb::GridBase::Ptr& header : *allHeaders) {
@@ -453,7 +456,16 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
       PB_RETURN_IF_ERROR(readInto(IrradianceGridName(c), vecTag, 3, &volume.irradiance[size_t(c)]));
     }
   }
-  PB_RETURN_IF_ERROR(readInto(kStdErrorGridName, floatTag, 1, &volume.stdError));
+  if (format == kProbeVolumeFormat1) {
+    // Format 1's std_error is the L0 figure; the irradiance figure was not recorded: unknown.
+    PB_RETURN_IF_ERROR(readInto(kStdErrorGridName, floatTag, 1, &volume.stdErrorL0));
+    volume.stdError.assign(probes, 0.0f);
+    for (size_t i = 0; i < probes; ++i)
+      if (volume.active[i]) volume.stdError[i] = std::numeric_limits<float>::infinity();
+  } else {
+    PB_RETURN_IF_ERROR(readInto(kStdErrorGridName, floatTag, 1, &volume.stdError));
+    PB_RETURN_IF_ERROR(readInto(kStdErrorL0GridName, floatTag, 1, &volume.stdErrorL0));
+  }
   PB_RETURN_IF_ERROR(readInto(kSampleCountGridName, floatTag, 1, &volume.sampleCount));
   return result;
 }

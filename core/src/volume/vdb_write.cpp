@@ -176,7 +176,7 @@ absl::Status WriteGrids(std::ostream& os, const std::string& path, const ProbeVo
                         ProbeVolume* releasable) {
   const int coefficients = volume.CoeffCount();
   const bool hasIrradiance = !volume.irradiance.empty();
-  const int32_t gridCount = coefficients * (hasIrradiance ? 2 : 1) + 3;
+  const int32_t gridCount = coefficients * (hasIrradiance ? 2 : 1) + 4;
   const vdb::math::Transform::Ptr transform = ProbeTransform(volume.grid);
 
   StreamingArchive archive;
@@ -209,6 +209,8 @@ absl::Status WriteGrids(std::ostream& os, const std::string& path, const ProbeVo
   for (const Scalar& s :
        {Scalar{kValidityGridName, volume.validity, releasable ? &releasable->validity : nullptr},
         Scalar{kStdErrorGridName, volume.stdError, releasable ? &releasable->stdError : nullptr},
+        Scalar{kStdErrorL0GridName, volume.stdErrorL0,
+               releasable ? &releasable->stdErrorL0 : nullptr},
         Scalar{kSampleCountGridName, volume.sampleCount,
                releasable ? &releasable->sampleCount : nullptr}}) {
     vdb::GridBase::ConstPtr grid = BuildScalarGrid(volume, s.name, transform, s.values);
@@ -271,7 +273,8 @@ absl::Status WriteProbeVolume(const std::string& path, ProbeVolume&& volume,
   for (auto* planes : {&volume.radiance, &volume.irradiance}) {
     std::vector<std::vector<float>>().swap(*planes);
   }
-  for (auto* values : {&volume.validity, &volume.stdError, &volume.sampleCount}) {
+  for (auto* values :
+       {&volume.validity, &volume.stdError, &volume.stdErrorL0, &volume.sampleCount}) {
     std::vector<float>().swap(*values);
   }
   return status;

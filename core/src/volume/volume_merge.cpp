@@ -39,6 +39,8 @@ std::vector<std::pair<std::string, std::string>> Invariants(const ProbeVolumeFil
   const ProbeVolume& v = f.volume;
   const bool autoWindow = v.window.rfind(kAutoPrefix, 0) == 0;
   return {
+      // Parts of two formats come from two bakers, whose bits differ.
+      {"probebake_format", std::to_string(f.format)},
       {"sh_order", std::to_string(v.shOrder)},
       {"has_irradiance", v.irradiance.empty() ? "false" : "true"},
       {"sh_window", autoWindow ? "AUTO" : v.window},
@@ -123,6 +125,7 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
   out.active.assign(probeCount, 0);
   out.validity.assign(probeCount, 0.0f);
   out.stdError.assign(probeCount, 0.0f);
+  out.stdErrorL0.assign(probeCount, 0.0f);
   out.sampleCount.assign(probeCount, 0.0f);
   out.radiance.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
   if (!first.irradiance.empty())
@@ -149,6 +152,7 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
       const bool seen = out.active[q] != 0;
       put(out.validity[q], v.validity[p]);
       put(out.stdError[q], v.stdError[p]);
+      put(out.stdErrorL0[q], v.stdErrorL0[p]);
       put(out.sampleCount[q], v.sampleCount[p]);
       for (int c = 0; c < coeffs; ++c) {
         for (int ch = 0; ch < 3; ++ch) {

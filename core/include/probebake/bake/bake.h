@@ -23,7 +23,8 @@ struct BakeProgress {
   int64_t rays = 0;
   double elapsedSeconds = 0;
   double etaSeconds = -1;  // < 0: unknown
-  // Mean relative standard error of the finished probes whose error is known; < 0: none is.
+  // Mean std_error (the relative standard error of the probe's irradiance, ProbeVolume::stdError)
+  // of the finished probes whose error is known; < 0: none is.
   double errorEstimate = -1;
   // Finished probes whose error is unknown (std_error inf: a single batch, or every sample black
   // while the scene has light to find), left out of errorEstimate.
@@ -57,12 +58,16 @@ struct BakeOptions {
 };
 
 // Adaptive sampling (settings.targetRelError > 0): a probe bakes batches in rounds (the first 8,
-// then 2 at a time) and stops once AdaptiveErrorBound(relative standard error, batches so far)
-// is at or below the target at two successive rounds, or at the sample cap. The bound is an upper
+// then 2 at a time) and stops once AdaptiveErrorBound(std_error, batches so far) is at or below
+// the target at two successive rounds, or at the sample cap. std_error is the relative standard
+// error of the probe's irradiance over the sphere of normals (ProbeVolume::stdError), so the
+// target bounds the directional light too, not the mean alone. The bound is an upper
 // confidence bound on the error rather than the estimate itself: stopping at the first estimate
 // that happens to come out low (optional stopping) leaves the achieved error above the target.
 // With k batches the estimated standard error has a relative spread of about 1/sqrt(2(k-1))
 // (Gaussian batch means); the bound adds kAdaptiveSigmas of it: relError * (1 + 2 / sqrt(2(k-1))).
+// std_error pools the spread of several coefficients, so its own spread is smaller than that:
+// the bound is conservative.
 // Batch means are not Gaussian where a small bright light is found by rare paths: batches that
 // have not met them yet report a low value and a low error together, a fluctuation the bound
 // cannot see. The second round must confirm the first: on the bench's courtyard a probe that

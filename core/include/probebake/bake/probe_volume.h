@@ -1,6 +1,6 @@
 // The result of a bake: per-probe SH radiance (and optionally irradiance), validity, error
-// estimate and sample count over a ProbeGrid (docs/volume-format.md). Written to and read from .vdb
-// files by probebake/volume/vdb_io.h.
+// estimates and sample count over a ProbeGrid (docs/volume-format.md). Written to and read from
+// .vdb files by probebake/volume/vdb_io.h.
 #pragma once
 
 #include <cstdint>
@@ -38,8 +38,13 @@ struct ProbeVolume {
   // Per probe, with the AUTO window only: the heat window's t chosen for the probe's irradiance
   // (0: unwindowed). Summarised in `window`; not written as a grid.
   std::vector<float> autoWindowT;
-  std::vector<float> validity;     // per probe: 1 valid, 0 inside geometry
-  std::vector<float> stdError;     // per probe: relative standard error of luminance L0
+  std::vector<float> validity;  // per probe: 1 valid, 0 inside geometry
+  // Per probe, both relative standard errors of luminance estimated from the batch spread
+  // (core/src/bake/probe_finish.h, docs/volume-format.md): of the irradiance reconstructed from
+  // all coefficients, RMS over the sphere of normals relative to the RMS irradiance; and of the
+  // L0 coefficient alone. +inf: unknown.
+  std::vector<float> stdError;
+  std::vector<float> stdErrorL0;
   std::vector<float> sampleCount;  // per probe: sample paths taken
   std::string window = "NONE";     // as recorded in the file's sh_window metadata
   BakeStats stats;

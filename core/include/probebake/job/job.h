@@ -77,7 +77,7 @@ QualityPreset PresetFor(v1::BakeSettings::Quality quality);
 // Settings with every default and preset resolved (job.proto's defaults: shOrder 2,
 // samplesPerProbe / maxDepth / targetRelError from the preset unless given, seed 1, irradiance
 // false, window NONE, windowWidth shOrder + 1, NEE_MIS, SOBOL, Russian roulette on, rrMinDepth 3,
-// batches 16 (64 when targetRelError > 0), backfaceFraction 0.5). `settings` must have passed
+// batches 4 (64 when targetRelError > 0), backfaceFraction 0.5). `settings` must have passed
 // ValidateJobSpec.
 BakeSettings ResolveSettings(const v1::BakeSettings& settings);
 

@@ -160,7 +160,7 @@ struct BakeSettings {
   SamplerKind sampler = SamplerKind::kSobol;
   bool russianRoulette = true;
   int rrMinDepth = 3;
-  int batches = 16;
+  int batches = 4;
   double backfaceFraction = 0.5;
 };
 

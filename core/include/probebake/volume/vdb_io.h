@@ -2,14 +2,14 @@
 // OpenVDB tools and by pyopenvdb. This header exposes no OpenVDB type; OpenVDB lives in two source
 // files.
 //
-// Layout written by WriteProbeVolume (format 1):
+// Layout written by WriteProbeVolume (format 2):
 // - Grids, in this order: radiance_sh_00 ... radiance_sh_NN (NN = (L+1)^2 - 1, two digits, so
 //   L <= 9), Vec3SGrid holding the RGB of SH coefficient i; irradiance_sh_00 ... likewise when
-//   ProbeVolume::irradiance is non-empty; validity, std_error and sample_count, FloatGrid. No
-//   other grids. Values are stored as 32-bit floats exactly as given (never as half), background
-//   0, grid class "unknown", Vec3 grids with vector type "invariant" (RGB does not transform).
-//   Each SH grid also carries int32 metadata sh_index, sh_l and sh_m (OpenVDB adds its own
-//   file_bbox_min/max, file_voxel_count, file_mem_bytes and file_compression).
+//   ProbeVolume::irradiance is non-empty; validity, std_error, std_error_l0 and sample_count,
+//   FloatGrid. No other grids. Values are stored as 32-bit floats exactly as given (never as half),
+//   background 0, grid class "unknown", Vec3 grids with vector type "invariant" (RGB does not
+//   transform). Each SH grid also carries int32 metadata sh_index, sh_l and sh_m (OpenVDB adds its
+//   own file_bbox_min/max, file_voxel_count, file_mem_bytes and file_compression).
 // - One transform shared by every grid: a linear scale-translate map with voxel size = probe
 //   spacing per axis, so index (i, j, k) maps to world origin + spacing * (i, j, k): integer
 //   index coordinates are voxel centres, and voxel centres are probes. The translation is the
@@ -25,7 +25,7 @@
 // - Compression: OpenVDB's default for files, blosc + active-mask compression (this OpenVDB build
 //   has blosc; zip would be its fallback). Lossless.
 // - File metadata (name: OpenVDB metadata type, all readable by pyopenvdb):
-//     probebake_format: int32 (1)          sh_order: int32 (L)
+//     probebake_format: int32 (2)          sh_order: int32 (L)
 //     sh_basis: string ("real-orthonormal-condon-shortley-zpolar")
 //     sh_window: string (ProbeVolume::window, e.g. "NONE")
 //     quantity: string ("radiance")        has_irradiance: bool
@@ -48,7 +48,7 @@
 //     grid_placement: string ("ALL", "OUTSIDE_GEOMETRY" or "NEAR_SURFACES")
 //     grid_surface_distance: double
 // - Not written: ProbeVolume::radianceStdError and ProbeVolume::autoWindowT (the tracer's optional
-//   per-coefficient standard errors and per-probe AUTO window t; format 1 has no grids for them,
+//   per-coefficient standard errors and per-probe AUTO window t; the format has no grids for them,
 //   and sh_window records the window). ReadProbeVolume gives them empty.
 // - Atomic: written to a hidden temporary file in the destination's directory, flushed and
 //   fsynced, renamed over `path`, then the directory is fsynced. A failed write leaves `path` as it
@@ -68,12 +68,16 @@
 
 namespace probebake {
 
-inline constexpr int kProbeVolumeFormat = 1;
+// The format written (docs/volume-format.md, "Versions and migration notes"), and the older one
+// ReadProbeVolume still reads.
+inline constexpr int kProbeVolumeFormat = 2;
+inline constexpr int kProbeVolumeFormat1 = 1;
 // Largest SH order whose coefficient indices fit the two-digit grid names.
 inline constexpr int kMaxVolumeShOrder = 9;
 
 inline constexpr const char* kValidityGridName = "validity";
 inline constexpr const char* kStdErrorGridName = "std_error";
+inline constexpr const char* kStdErrorL0GridName = "std_error_l0";
 inline constexpr const char* kSampleCountGridName = "sample_count";
 
 // "radiance_sh_07" for coefficient 7; coefficient in [0, 99].
@@ -116,6 +120,7 @@ absl::Status CheckOutputWritable(const std::string& path);
 struct ProbeVolumeFile {
   ProbeVolume volume;
   VolumeMetadata meta;
+  int format = kProbeVolumeFormat;  // probebake_format of the file
   // Every file-level metadata entry, its value as text: strings as they are, integers in decimal,
   // bools as "true"/"false", floating point with round-trip precision, vectors as "(x, y, z)".
   std::map<std::string, std::string> rawMetadata;
@@ -131,6 +136,9 @@ struct ProbeVolumeFile {
 // with grid_min / grid_spacing, active voxels that differ between grids or lie outside the grid,
 // metadata of the wrong type. Errors are INVALID_ARGUMENT "<path>: <grid or key>: <reason>"
 // (NOT_FOUND when the file does not exist).
+// Also reads format 1 (no std_error_l0 grid; its std_error held the L0 figure): that grid goes to
+// ProbeVolume::stdErrorL0, and stdError, which format 1 did not record, is +inf (unknown) at
+// every active probe. Other formats are refused.
 absl::StatusOr<ProbeVolumeFile> ReadProbeVolume(const std::string& path);
 
 }  // namespace probebake
