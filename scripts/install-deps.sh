@@ -10,7 +10,7 @@ PACKAGES=(
   # RPC and data formats
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler libabsl-dev libssl-dev
   # rendering and volumes
-  libembree-dev libopenvdb-dev libboost-iostreams-dev libopenexr-dev libassimp-dev libpng-dev
+  libembree-dev libopenvdb-dev libboost-iostreams-dev libopenexr-dev libassimp-dev libpng-dev libstb-dev
   # runtime services
   libspdlog-dev libtbb-dev libsqlite3-dev libcli11-dev
   # tests and benchmarks

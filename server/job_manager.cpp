@@ -200,11 +200,7 @@ absl::Status JobManager::ValidateForServer(const v1::JobSpec& spec) const {
   auto check = [&](const v1::Digest& digest, const std::string& field) {
     if (!blobs_->Touch(digest)) missing.push_back(absl::StrCat(field, " ", DigestString(digest)));
   };
-  for (int i = 0; i < spec.scene().meshes_size(); ++i)
-    if (spec.scene().meshes(i).has_blob())
-      check(spec.scene().meshes(i).blob(), absl::StrCat("scene.meshes[", i, "].blob"));
-  if (spec.scene().environment().has_map() && spec.scene().environment().map().has_blob())
-    check(spec.scene().environment().map().blob(), "scene.environment.map.blob");
+  for (const BlobReference& ref : ListBlobReferences(spec)) check(ref.digest, ref.fieldPath);
   if (!missing.empty())
     return absl::FailedPreconditionError(absl::StrCat(
         "missing blobs (upload them with WriteBlob, then retry): ", absl::StrJoin(missing, "; ")));

@@ -16,6 +16,7 @@
 #include "probebake/base/check.h"
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
+#include "probebake/job/file_refs.h"
 #include "probebake/job/job.h"
 #include "probebake/volume/vdb_io.h"
 #include "probebake/volume/volume_merge.h"
@@ -189,12 +190,8 @@ absl::Status SlurmRunner::WriteFolder(const Run& r, const v1::JobSpec& spec,
   if (!google::protobuf::util::MessageToJsonString(spec, &json).ok())
     return absl::InternalError("the job's spec does not print as JSON");
   PB_RETURN_IF_ERROR(runtime::WriteFileAtomic(r.folder / "job.json", json));
-  std::vector<v1::Digest> digests;
-  for (const v1::Mesh& mesh : spec.scene().meshes())
-    if (mesh.has_blob()) digests.push_back(mesh.blob());
-  if (spec.scene().environment().has_map() && spec.scene().environment().map().has_blob())
-    digests.push_back(spec.scene().environment().map().blob());
-  for (const v1::Digest& digest : digests) {
+  for (const BlobReference& ref : ListBlobReferences(spec)) {
+    const v1::Digest& digest = ref.digest;
     PB_ASSIGN_OR_RETURN(std::string bytes, blobs_->ReadAll(digest));
     PB_RETURN_IF_ERROR(runtime::WriteFileAtomic(r.folder / "blobs" / digest.hash(), bytes));
   }

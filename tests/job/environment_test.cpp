@@ -256,7 +256,7 @@ TEST(EnvironmentMap, BadMapsAreRejectedWithThePath) {
   dir.Write("garbage.exr", "not an exr");
   EXPECT_TRUE(HasFieldError(BuildEnvJob(dir, R"({"file": "garbage.exr"})").status(),
                             "scene.environment.map.file",
-                            "cannot read \"garbage.exr\" as OpenEXR"));
+                            "\"garbage.exr\" is neither an OpenEXR nor a Radiance HDR file"));
   // A truncated file fails cleanly too.
   const std::string whole = ReadText(dir.File("big.exr"));
   dir.Write("truncated.exr", whole.substr(0, whole.size() / 2));

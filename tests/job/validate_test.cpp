@@ -213,7 +213,7 @@ TEST(ValidateJobSpec, EnvironmentAndMedium) {
   EXPECT_TRUE(HasFieldError(CheckPatched("scene.environment", "{}"), "scene.environment",
                             "expected one of uniform or map"));
   EXPECT_TRUE(HasFieldError(CheckPatched("scene.environment", R"({"map": {"scale": 2}})"),
-                            "scene.environment.map", "missing file or blob"));
+                            "scene.environment.map", "missing file, blob or faces"));
   EXPECT_TRUE(HasFieldError(CheckPatched("scene.environment", R"({"map": {"file": "sky.exr",
                                                                    "scale": -1}})"),
                             "scene.environment.map.scale", "negative"));

@@ -3,11 +3,13 @@
 #include <google/protobuf/io/zero_copy_stream_impl_lite.h>
 
 #include <algorithm>
+#include <array>
 #include <cfloat>
 #include <cmath>
 #include <map>
 #include <utility>
 
+#include "cube_map.h"
 #include "env_map.h"
 #include "errors.h"
 #include "mesh_import.h"
@@ -176,28 +178,73 @@ absl::Status BuildEnvironment(const v1::Environment& spec, const AssetSource& as
   if (!spec.has_map()) return absl::OkStatus();
   const v1::EnvironmentMap& m = spec.map();
   const std::string path = "scene.environment.map";
-  // Read even with scale 0, so that a missing file is reported whatever the scale.
-  PB_ASSIGN_OR_RETURN(const std::string bytes,
-                      ReadAsset(m.file(), &m.blob(), path, assets, limits));
-  PB_ASSIGN_OR_RETURN(EnvironmentMap map, job_internal::DecodeEnvironmentMap(
-                                              bytes, AssetName(m.file(), m.blob()),
-                                              path + (m.file().empty() ? ".blob" : ".file"),
-                                              limits.maxEnvironmentPixels));
   v1::EnvironmentMap* c = canonical->mutable_map();
-  if (!m.file().empty()) *c->mutable_blob() = DigestOf(bytes);
-  c->clear_file();
+  EnvironmentMap map;
+  bool cube = false;
+  // Files are read even with scale 0, so that a missing file is reported whatever the scale.
+  if (m.faces_size() > 0) {  // validated: six faces, no file or blob
+    std::array<EnvironmentMap, 6> faces;
+    std::array<std::string, 6> facePaths;
+    std::string faceDigests;
+    for (int f = 0; f < 6; ++f) {
+      const v1::EnvironmentFace& face = m.faces(f);
+      const std::string facePath = job_internal::Index(path + ".faces", f);
+      PB_ASSIGN_OR_RETURN(const std::string bytes,
+                          ReadAsset(face.file(), &face.blob(), facePath, assets, limits));
+      facePaths[size_t(f)] = facePath + (face.file().empty() ? ".blob" : ".file");
+      PB_ASSIGN_OR_RETURN(
+          job_internal::EnvironmentImage image,
+          job_internal::DecodeEnvironmentImage(bytes, AssetName(face.file(), face.blob()),
+                                               facePaths[size_t(f)], limits.maxEnvironmentPixels));
+      faces[size_t(f)] = std::move(image.pixels);
+      v1::EnvironmentFace* canonicalFace = c->mutable_faces(f);
+      if (!face.file().empty()) *canonicalFace->mutable_blob() = DigestOf(bytes);
+      canonicalFace->clear_file();
+      faceDigests += Sha256Hex(bytes);
+    }
+    PB_ASSIGN_OR_RETURN(const EnvironmentMap stacked,
+                        job_internal::StackCubeFaces(faces, facePaths));
+    PB_ASSIGN_OR_RETURN(
+        map, job_internal::LatLongFromCube(stacked, path + ".faces", limits.maxEnvironmentPixels));
+    map.digest = Sha256Hex(faceDigests);
+    cube = true;
+  } else {
+    PB_ASSIGN_OR_RETURN(const std::string bytes,
+                        ReadAsset(m.file(), &m.blob(), path, assets, limits));
+    const std::string fieldPath = path + (m.file().empty() ? ".blob" : ".file");
+    PB_ASSIGN_OR_RETURN(
+        job_internal::EnvironmentImage image,
+        job_internal::DecodeEnvironmentImage(bytes, AssetName(m.file(), m.blob()), fieldPath,
+                                             limits.maxEnvironmentPixels));
+    cube = m.projection() == v1::EnvironmentMap::CUBE ||
+           (m.projection() == v1::EnvironmentMap::PROJECTION_UNSPECIFIED && image.cubeTagged);
+    if (cube) {
+      PB_ASSIGN_OR_RETURN(
+          map, job_internal::LatLongFromCube(image.pixels, fieldPath, limits.maxEnvironmentPixels));
+    } else {
+      map = std::move(image.pixels);
+    }
+    if (!m.file().empty()) *c->mutable_blob() = DigestOf(bytes);
+    c->clear_file();
+    map.digest = Sha256Hex(bytes);
+  }
+  // Canonical: the projection as read (lat-long spelled as the default, so that jobs written
+  // before cube maps keep their digests).
+  c->set_projection(cube ? v1::EnvironmentMap::CUBE : v1::EnvironmentMap::PROJECTION_UNSPECIFIED);
 
   map.scale = m.has_scale() ? m.scale() : 1;
   const float brightest =
       map.rgb.empty() ? 0.0f : *std::max_element(map.rgb.begin(), map.rgb.end());
   if (double(brightest) * map.scale > kMaxEmitted) {
-    return FieldError(path + (m.has_scale() ? ".scale" : (m.file().empty() ? ".blob" : ".file")),
+    return FieldError(path + (m.has_scale()        ? ".scale"
+                              : m.faces_size() > 0 ? ".faces"
+                              : m.file().empty()   ? ".blob"
+                                                   : ".file"),
                       "the brightest pixel (" + Num(brightest) + ") times the scale (" +
                           Num(map.scale) + ") is more than 1e30, " +
                           job_internal::kBeyondVolumeFloats);
   }
   map.worldFromMap = EnvironmentWorldFromMap(m.up(), m.rotation_deg());
-  map.digest = Sha256Hex(bytes);
   if (map.scale > 0) {
     env->kind = Environment::Kind::kMap;
     env->map = std::make_shared<const EnvironmentMap>(std::move(map));

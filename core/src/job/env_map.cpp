@@ -1,6 +1,7 @@
 #include "env_map.h"
 
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfEnvmapAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfIO.h>
@@ -9,9 +10,11 @@
 #include <cmath>
 #include <cstring>
 #include <exception>
+#include <memory>
 #include <stdexcept>
 
 #include "probebake/base/status.h"
+#include "stb_image.h"
 #include "text.h"
 
 namespace probebake::job_internal {
@@ -38,13 +41,53 @@ class MemoryIStream final : public Imf::IStream {
   uint64_t position_ = 0;
 };
 
-}  // namespace
+bool IsOpenExr(std::string_view bytes) {
+  return bytes.size() >= 4 && bytes.substr(0, 4) == std::string_view("\x76\x2f\x31\x01", 4);
+}
 
-absl::StatusOr<EnvironmentMap> DecodeEnvironmentMap(std::string_view bytes, const std::string& name,
-                                                    const std::string& fieldPath,
-                                                    int64_t maxPixels) {
-  const std::string what = Quoted(name);
-  EnvironmentMap map;
+// Radiance files start with "#?" and a program name ("#?RADIANCE", "#?RGBE").
+bool IsRadianceHdr(std::string_view bytes) {
+  return bytes.size() >= 2 && bytes.substr(0, 2) == "#?";
+}
+
+absl::Status CheckSize(int64_t width, int64_t height, int64_t maxPixels, const std::string& what,
+                       const std::string& fieldPath) {
+  if (width < 1 || height < 1) return FieldError(fieldPath, what + " has no pixels");
+  if (maxPixels > 0 && width * height > maxPixels) {
+    return FieldError(fieldPath, what + " has " + Num(width) + " x " + Num(height) +
+                                     " pixels, above the limit of " + Num(maxPixels));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status DecodeRadianceHdr(std::string_view bytes, const std::string& what,
+                               const std::string& fieldPath, int64_t maxPixels,
+                               EnvironmentMap* map) {
+  if (bytes.size() > size_t(INT32_MAX)) return FieldError(fieldPath, what + " is too large");
+  const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
+  int width = 0, height = 0, channels = 0;
+  if (!stbi_info_from_memory(data, int(bytes.size()), &width, &height, &channels)) {
+    return FieldError(fieldPath, "cannot read " + what +
+                                     " as Radiance HDR: " + std::string(stbi_failure_reason()));
+  }
+  PB_RETURN_IF_ERROR(CheckSize(width, height, maxPixels, what, fieldPath));
+  std::unique_ptr<float, void (*)(void*)> pixels(
+      stbi_loadf_from_memory(data, int(bytes.size()), &width, &height, &channels, 3),
+      stbi_image_free);
+  if (!pixels) {
+    return FieldError(fieldPath, "cannot read " + what +
+                                     " as Radiance HDR: " + std::string(stbi_failure_reason()));
+  }
+  map->width = width;
+  map->height = height;
+  map->rgb.assign(pixels.get(), pixels.get() + size_t(width) * size_t(height) * 3);
+  return absl::OkStatus();
+}
+
+absl::Status DecodeOpenExr(std::string_view bytes, const std::string& what,
+                           const std::string& fieldPath, int64_t maxPixels, EnvironmentMap* out,
+                           bool* cubeTagged) {
+  EnvironmentMap& map = *out;
   try {
     MemoryIStream stream(bytes);
     Imf::InputFile file(stream);
@@ -53,10 +96,9 @@ absl::StatusOr<EnvironmentMap> DecodeEnvironmentMap(std::string_view bytes, cons
     const int64_t width = int64_t(window.max.x) - window.min.x + 1;
     const int64_t height = int64_t(window.max.y) - window.min.y + 1;
     if (width < 1 || height < 1) return FieldError(fieldPath, what + " has an empty data window");
-    if (maxPixels > 0 && width * height > maxPixels) {
-      return FieldError(fieldPath, what + " has " + Num(width) + " x " + Num(height) +
-                                       " pixels, above the limit of " + Num(maxPixels));
-    }
+    PB_RETURN_IF_ERROR(CheckSize(width, height, maxPixels, what, fieldPath));
+    const auto* envmap = header.findTypedAttribute<Imf::EnvmapAttribute>("envmap");
+    *cubeTagged = envmap != nullptr && envmap->value() == Imf::ENVMAP_CUBE;
 
     const Imf::ChannelList& channels = header.channels();
     const bool rgb =
@@ -106,6 +148,25 @@ absl::StatusOr<EnvironmentMap> DecodeEnvironmentMap(std::string_view bytes, cons
   } catch (const std::exception& e) {
     return FieldError(fieldPath, "cannot read " + what + " as OpenEXR: " + e.what());
   }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+absl::StatusOr<EnvironmentImage> DecodeEnvironmentImage(std::string_view bytes,
+                                                        const std::string& name,
+                                                        const std::string& fieldPath,
+                                                        int64_t maxPixels) {
+  const std::string what = Quoted(name);
+  EnvironmentImage image;
+  EnvironmentMap& map = image.pixels;
+  if (IsOpenExr(bytes)) {
+    PB_RETURN_IF_ERROR(DecodeOpenExr(bytes, what, fieldPath, maxPixels, &map, &image.cubeTagged));
+  } else if (IsRadianceHdr(bytes)) {
+    PB_RETURN_IF_ERROR(DecodeRadianceHdr(bytes, what, fieldPath, maxPixels, &map));
+  } else {
+    return FieldError(fieldPath, what + " is neither an OpenEXR nor a Radiance HDR file");
+  }
 
   for (size_t k = 0; k < map.rgb.size(); ++k) {
     const float v = map.rgb[k];
@@ -118,7 +179,7 @@ absl::StatusOr<EnvironmentMap> DecodeEnvironmentMap(std::string_view bytes, cons
                                        " value (" + Num(double(v)) + ")");
     }
   }
-  return map;
+  return image;
 }
 
 }  // namespace probebake::job_internal

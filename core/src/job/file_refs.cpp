@@ -47,6 +47,30 @@ std::vector<FileReference> ListFileReferences(const v1::JobSpec& job) {
     refs.push_back({FileReference::Kind::kEnvironmentMap, -1, "scene.environment.map.file",
                     scene.environment().map().file()});
   }
+  for (int f = 0; f < scene.environment().map().faces_size(); ++f) {
+    const std::string& file = scene.environment().map().faces(f).file();
+    if (file.empty()) continue;
+    refs.push_back({FileReference::Kind::kEnvironmentFace, -1,
+                    job_internal::Index("scene.environment.map.faces", f) + ".file", file, f});
+  }
+  return refs;
+}
+
+std::vector<BlobReference> ListBlobReferences(const v1::JobSpec& job) {
+  std::vector<BlobReference> refs;
+  const v1::Scene& scene = job.scene();
+  for (int i = 0; i < scene.meshes_size(); ++i) {
+    if (scene.meshes(i).has_blob())
+      refs.push_back({job_internal::Index("scene.meshes", i) + ".blob", scene.meshes(i).blob()});
+  }
+  if (!scene.environment().has_map()) return refs;
+  const v1::EnvironmentMap& map = scene.environment().map();
+  if (map.has_blob()) refs.push_back({"scene.environment.map.blob", map.blob()});
+  for (int f = 0; f < map.faces_size(); ++f) {
+    if (map.faces(f).has_blob())
+      refs.push_back(
+          {job_internal::Index("scene.environment.map.faces", f) + ".blob", map.faces(f).blob()});
+  }
   return refs;
 }
 
@@ -69,6 +93,18 @@ absl::Status ReplaceFileWithBlob(const FileReference& ref, const v1::Digest& dig
     mesh->set_format(*format);
     *mesh->mutable_blob() = digest;
     mesh->clear_file();
+    return absl::OkStatus();
+  }
+  if (ref.kind == FileReference::Kind::kEnvironmentFace) {
+    v1::EnvironmentMap* map = scene->mutable_environment()->mutable_map();
+    if (!scene->environment().has_map() || ref.faceIndex < 0 ||
+        ref.faceIndex >= map->faces_size() ||
+        map->faces(ref.faceIndex).file() != ref.relativePath) {
+      return FieldError(ref.fieldPath, "the job holds no file reference " +
+                                           job_internal::Quoted(ref.relativePath) + " here");
+    }
+    *map->mutable_faces(ref.faceIndex)->mutable_blob() = digest;
+    map->mutable_faces(ref.faceIndex)->clear_file();
     return absl::OkStatus();
   }
   if (!scene->environment().has_map() || scene->environment().map().file() != ref.relativePath) {

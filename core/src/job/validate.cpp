@@ -454,11 +454,37 @@ class Validator {
         const v1::EnvironmentMap& map = env.map();
         const std::string p = "scene.environment.map";
         const bool hasFile = !map.file().empty();
-        if (hasFile == map.has_blob()) {
-          errors_.Add(p, hasFile ? "give file or blob, not both" : "missing file or blob");
+        if (map.faces_size() > 0) {
+          if (hasFile || map.has_blob()) {
+            errors_.Add(p, "give file or blob, or faces, not both");
+          }
+          if (map.faces_size() != 6) {
+            errors_.Add(p + ".faces",
+                        "expected 6 faces (+X, -X, +Y, -Y, +Z, -Z), got " + Num(map.faces_size()));
+          }
+          if (map.projection() != v1::EnvironmentMap::CUBE &&
+              map.projection() != v1::EnvironmentMap::PROJECTION_UNSPECIFIED) {
+            errors_.Add(p + ".projection", "faces make a cube map: projection must be CUBE");
+          }
+          for (int f = 0; f < map.faces_size(); ++f) {
+            const v1::EnvironmentFace& face = map.faces(f);
+            const std::string fp = Index(p + ".faces", f);
+            const bool faceFile = !face.file().empty();
+            if (faceFile == face.has_blob()) {
+              errors_.Add(fp, faceFile ? "give file or blob, not both" : "missing file or blob");
+            }
+            if (faceFile) RelativePath(face.file(), fp + ".file");
+            if (face.has_blob()) BlobDigest(face.blob(), fp + ".blob");
+          }
+        } else if (hasFile == map.has_blob()) {
+          errors_.Add(p, hasFile ? "give file or blob, not both" : "missing file, blob or faces");
         }
         if (hasFile) RelativePath(map.file(), p + ".file");
         if (map.has_blob()) BlobDigest(map.blob(), p + ".blob");
+        if (!v1::EnvironmentMap::Projection_IsValid(map.projection())) {
+          errors_.Add(p + ".projection", "unknown value " + Num(int(map.projection())) +
+                                             " (expected LAT_LONG or CUBE)");
+        }
         if (map.has_scale() && std::isfinite(map.scale()) && map.scale() < 0)
           errors_.Add(p + ".scale", "negative (" + Num(map.scale()) + ")");
         if (map.has_scale() && std::isfinite(map.scale()) && map.scale() > kMaxEmitted)

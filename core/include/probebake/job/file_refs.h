@@ -15,20 +15,31 @@
 namespace probebake {
 
 struct FileReference {
-  enum class Kind { kMesh, kEnvironmentMap };
+  enum class Kind { kMesh, kEnvironmentMap, kEnvironmentFace };
   Kind kind = Kind::kMesh;
   int meshIndex = -1;        // kMesh: index into scene.meshes
-  std::string fieldPath;     // "scene.meshes[3].file" or "scene.environment.map.file"
+  std::string fieldPath;     // "scene.meshes[3].file", "scene.environment.map.file", ...
   std::string relativePath;  // the path as written in the job (relative to the job file)
+  int faceIndex = -1;        // kEnvironmentFace: index into scene.environment.map.faces
 };
 
-// Every non-empty `file` in `job`, meshes in order, then the environment map.
+// Every non-empty `file` in `job`, meshes in order, then the environment map or its faces.
 std::vector<FileReference> ListFileReferences(const v1::JobSpec& job);
+
+// An uploaded asset a job names: the digest and the field that names it ("scene.meshes[2].blob").
+struct BlobReference {
+  std::string fieldPath;
+  v1::Digest digest;
+};
+
+// Every `blob` in `job`, in the order of ListFileReferences: what a server must hold (and a
+// cluster backend copy) before the job can bake.
+std::vector<BlobReference> ListBlobReferences(const v1::JobSpec& job);
 
 // Replaces the reference `ref` (from ListFileReferences on this job) by `digest`: a mesh gets
 // `blob` and `format` (its explicit format, lowercased, else its file extension), an environment
-// map gets `blob`; `file` is cleared. INVALID_ARGUMENT naming the field when the job no longer
-// holds that reference or a mesh file's format is unknown.
+// map or cube face gets `blob`; `file` is cleared. INVALID_ARGUMENT naming the field when the job
+// no longer holds that reference or a mesh file's format is unknown.
 absl::Status ReplaceFileWithBlob(const FileReference& ref, const v1::Digest& digest,
                                  v1::JobSpec* job);
 
