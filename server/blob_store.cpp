@@ -143,15 +143,18 @@ absl::Status BlobUpload::Append(int64_t offset, std::string_view data) {
   return absl::OkStatus();
 }
 
+void BlobUpload::Discard() {
+  if (done_) return;
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
+  std::error_code ec;
+  fs::remove(partialPath_, ec);
+  if (ec) Logger("blobs")->warn("discard {}: {}", partialPath_.string(), ec.message());
+  done_ = true;
+}
+
 absl::Status BlobUpload::Commit() {
   if (done_) return absl::OkStatus();
-  auto discard = [&] {
-    ::close(fd_);
-    fd_ = -1;
-    std::error_code ec;
-    fs::remove(partialPath_, ec);
-    done_ = true;
-  };
   if (size_ != digest_.size_bytes()) {
     // Short: keep the bytes so the client can resume.
     return FieldError("finishWrite",
@@ -160,7 +163,7 @@ absl::Status BlobUpload::Commit() {
   }
   std::string hash = hash_.FinalHex();
   if (hash != digest_.hash()) {
-    discard();
+    Discard();
     return FieldError("digest.hash",
                       absl::StrCat("the uploaded bytes hash to ", hash, ", not ", digest_.hash()));
   }

@@ -58,8 +58,10 @@ class BlobUpload {
   // when the blob would exceed its digest's size).
   absl::Status Append(int64_t offset, std::string_view data);
   // Verifies size and SHA-256 against the digest and stores the blob. INVALID_ARGUMENT on a
-  // mismatch (the partial upload is then discarded, so a retry starts from 0).
+  // mismatch (a wrong hash discards the partial upload, so a retry starts from 0).
   absl::Status Commit();
+  // Removes the partial upload: a refused upload leaves nothing behind. No-op once committed.
+  void Discard();
 
  private:
   friend class BlobStore;

@@ -170,6 +170,9 @@ class WriteBlobReactor final : public grpc::ServerReadReactor<v1::WriteBlobReque
       if (!absl::IsInvalidArgument(status) && !absl::IsAborted(status))
         Logger("blobs")->warn("WriteBlob {}: {}", DigestString(digest_),
                               std::string(status.message()));
+      // A refused upload is discarded (service.proto), but for bytes an earlier stream left for
+      // resuming: a client that resumes at the wrong offset asks QueryWriteStatus and retries.
+      if (upload_ && absl::IsInvalidArgument(status) && !keepForResume_) upload_->Discard();
       upload_.reset();
       Finish(ToGrpc(redact_(status)));
       return;
@@ -200,10 +203,12 @@ class WriteBlobReactor final : public grpc::ServerReadReactor<v1::WriteBlobReque
         return absl::OkStatus();
       }
       PB_ASSIGN_OR_RETURN(upload_, blobs_->BeginWrite(digest_));
+      heldAtStart_ = upload_->committedSize();
     } else if (request_.has_digest() && (request_.digest().hash() != digest_.hash() ||
                                          request_.digest().size_bytes() != digest_.size_bytes())) {
       return FieldError("digest", "differs from the first message's digest");
     }
+    keepForResume_ = request_.write_offset() != upload_->committedSize() && heldAtStart_ > 0;
     PB_RETURN_IF_ERROR(upload_->Append(request_.write_offset(), request_.data()));
     if (request_.finish_write()) {
       PB_RETURN_IF_ERROR(upload_->Commit());
@@ -223,6 +228,8 @@ class WriteBlobReactor final : public grpc::ServerReadReactor<v1::WriteBlobReque
   v1::Digest digest_;
   std::unique_ptr<BlobUpload> upload_;
   bool finished_ = false;
+  int64_t heldAtStart_ = 0;     // bytes earlier streams left, which this one resumes
+  bool keepForResume_ = false;  // the refusal is a wrong offset on such bytes
 };
 
 // ReadBlob: streams [offset, end) in chunks, one write at a time.

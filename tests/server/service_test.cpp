@@ -167,6 +167,76 @@ TEST(Service, WrongDigestIsInvalidArgumentAndUploadsResume) {
   EXPECT_EQ(s.Health(), 1);
 }
 
+TEST(Service, RefusedUploadsLeaveNothingBehind) {
+  TestServer s;
+  std::string data(50000, 'x');
+  for (size_t i = 0; i < data.size(); ++i) data[i] = char(i * 131 + 3);
+  const v1::Digest digest = DigestOf(data);
+  struct Message {
+    v1::Digest digest;
+    int64_t offset = 0;
+    std::string bytes;
+    bool finish = false;
+  };
+  // One stream of `messages`; the status it ends with.
+  auto write = [&](const std::vector<Message>& messages) {
+    auto context = s.Context();
+    auto stub = s.Content();
+    v1::WriteBlobResponse response;
+    auto writer = stub->WriteBlob(context.get(), &response);
+    for (const Message& m : messages) {
+      v1::WriteBlobRequest request;
+      *request.mutable_digest() = m.digest;
+      request.set_write_offset(m.offset);
+      request.set_data(m.bytes);
+      request.set_finish_write(m.finish);
+      if (!writer->Write(request)) break;
+    }
+    writer->WritesDone();
+    return writer->Finish();
+  };
+  const std::filesystem::path uploads = s.dataDir() / "uploads";
+  auto leftovers = [&] {
+    std::vector<std::string> names;
+    for (const auto& entry : std::filesystem::directory_iterator(uploads))
+      names.push_back(entry.path().filename().string());
+    return names;
+  };
+  v1::Digest wrongHash = digest, shortSize = digest, other = DigestOf("another blob");
+  wrongHash.set_hash(Sha256Hex("something else"));
+  shortSize.set_size_bytes(10);
+  const std::string half = data.substr(0, 20000);
+  const struct {
+    const char* what;
+    std::vector<Message> messages;
+  } refusals[] = {
+      {"bytes that hash to another digest", {{wrongHash, 0, data, true}}},
+      {"more bytes than the digest's size", {{shortSize, 0, data, true}}},
+      {"finishWrite before every byte", {{digest, 0, half, true}}},
+      {"finishWrite in a later message, short", {{digest, 0, half}, {digest, 20000, "", true}}},
+      {"an offset skipping ahead on a new upload", {{digest, 100, data, true}}},
+      {"a negative offset on a new upload", {{digest, -5, data, true}}},
+      {"a digest changing mid-stream", {{digest, 0, half}, {other, 20000, data.substr(20000)}}},
+      {"an offset skipping ahead after good chunks", {{digest, 0, half}, {digest, 30000, "x"}}},
+  };
+  for (const auto& refusal : refusals) {
+    const grpc::Status status = write(refusal.messages);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT)
+        << refusal.what << ": " << status.error_message();
+    EXPECT_EQ(leftovers(), std::vector<std::string>{}) << refusal.what;
+  }
+  // What the contract keeps: a broken stream's bytes, and those bytes through a resume at the
+  // wrong offset, until the upload completes.
+  EXPECT_EQ(write({{digest, 0, half}}).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(leftovers().size(), 1u);
+  EXPECT_EQ(write({{digest, 0, data, true}}).error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(leftovers().size(), 1u);
+  EXPECT_TRUE(write({{digest, 20000, data.substr(20000), true}}).ok());
+  EXPECT_EQ(leftovers(), std::vector<std::string>{});
+  EXPECT_EQ(s.Download(digest), data);
+  EXPECT_EQ(s.Health(), 1);
+}
+
 TEST(Service, SubmitWatchFetch) {
   TestServer s;
   const int probes = 24;
