@@ -498,6 +498,39 @@ TEST(MeshImport, GltfGeometryAssimpWouldMisreadIsRefused) {
   }
 }
 
+TEST(MeshImport, GltfIndicesPastTheVerticesAreRefused) {
+  // Two triangles over four vertices, the second indexing vertex 9: assimp drops that triangle
+  // with only a log line, which would bake a model with a hole (OBJ and PLY are refused alike).
+  TempDir dir;
+  const float positions[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
+  for (const uint16_t last : {uint16_t(2), uint16_t(9)}) {
+    const uint16_t indices[6] = {0, 1, 2, 1, 3, last};
+    std::string bin(reinterpret_cast<const char*>(positions), sizeof positions);
+    bin.append(reinterpret_cast<const char*>(indices), sizeof indices);
+    const std::string json =
+        R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+      "nodes": [{"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+      "buffers": [{"uri": "data:application/octet-stream;base64,)" +
+        absl::Base64Escape(bin) + R"(", "byteLength": 60}],
+      "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                      {"buffer": 0, "byteOffset": 48, "byteLength": 12}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                     "min": [0, 0, 0], "max": [1, 1, 0]},
+                    {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}]})";
+    dir.Write("m.gltf", json);
+    const absl::StatusOr<BakeJob> built = BuildMeshJob(dir, "m.gltf");
+    if (last == 2) {
+      ASSERT_TRUE(built.ok()) << built.status();
+      EXPECT_EQ(built->scene.meshes[0].TriangleCount(), 2u);
+    } else {
+      EXPECT_TRUE(HasFieldError(built.status(), "scene.meshes[0].file",
+                                "some triangles index vertices past the end"))
+          << built.status();
+    }
+  }
+}
+
 TEST(MeshImport, PlyTriangleStripsAreRefused) {
   // Assimp kept the first triangle of each strip and dropped the rest, silently.
   TempDir dir;

@@ -13,6 +13,7 @@
 #include <set>
 #include <utility>
 
+#include "assimp_warnings.h"
 #include "mesh_file_check.h"
 #include "probebake/base/status.h"
 #include "text.h"
@@ -107,6 +108,7 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
         fieldPath, "cannot import " + what + " as " + format + ": it is not a " + format + " file");
   }
 
+  const AssimpWarningCapture assimpWarnings;
   Assimp::Importer importer;
   importer.SetIOHandler(new NoFilesIOSystem);  // the importer owns it
   // Points and lines are dropped entirely rather than kept as separate meshes.
@@ -122,6 +124,11 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
   try {
     scene = importer.ReadFileFromMemory(bytes.data(), bytes.size(), aiProcess_ValidateDataStructure,
                                         format.c_str());
+    if (scene != nullptr && assimpWarnings.Saw("out-of-range indices")) {
+      return FieldError(fieldPath, "cannot import " + what + " as " + format +
+                                       ": some triangles index vertices past the end of their "
+                                       "primitive's vertices (assimp would drop them)");
+    }
     if (scene != nullptr) {
       for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
         const aiMesh* mesh = scene->mMeshes[m];
