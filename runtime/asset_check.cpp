@@ -1,8 +1,12 @@
 #include "runtime/asset_check.h"
 
+#include <sys/resource.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <cstdio>
+#include <cstring>
+#include <new>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
@@ -44,7 +48,21 @@ struct Report {
   std::string lastAsset;
   bool finished = false;
   absl::Status status;
+  int64_t outOfMemoryAt = 0;  // the memory limit an allocation ran past, bytes
 };
+
+// The exit code of a child whose allocation failed under its memory limit.
+constexpr int kExitOutOfMemory = 86;
+
+// The report line and exit of a child out of memory, from operator new's handler: no allocation,
+// only async-signal-safe calls.
+char gOutOfMemoryLine[64] = "memory 0\n";
+
+[[noreturn]] void OnOutOfMemory() {
+  const ssize_t ignored = ::write(STDOUT_FILENO, gOutOfMemoryLine, std::strlen(gOutOfMemoryLine));
+  (void)ignored;
+  ::_exit(kExitOutOfMemory);
+}
 
 Report ParseReport(const std::string& out) {
   Report report;
@@ -55,6 +73,8 @@ Report ParseReport(const std::string& out) {
         out.substr(at, end == std::string::npos ? std::string::npos : end - at);
     if (line.rfind("asset ", 0) == 0) {
       report.lastAsset = line.substr(6);
+    } else if (line.rfind("memory ", 0) == 0) {
+      if (!absl::SimpleAtoi(line.substr(7), &report.outOfMemoryAt)) report.outOfMemoryAt = -1;
     } else if (line.rfind("status ", 0) == 0 && end != std::string::npos) {
       int code = 0;
       if (absl::SimpleAtoi(line.substr(7), &code)) {
@@ -84,6 +104,20 @@ absl::Status RunAssetCheck(std::vector<std::string> argv, std::chrono::seconds t
                      " s (the file is malformed or too large)"));
   }
   const int waitStatus = child->waitStatus;
+  if (parsed.outOfMemoryAt != 0 && WIFEXITED(waitStatus) &&
+      WEXITSTATUS(waitStatus) == kExitOutOfMemory) {
+    log->warn("asset check of {} ran out of its memory limit", field);
+    return absl::InvalidArgumentError(
+        absl::StrCat(field, ": importing this file needs more memory than the limit of ",
+                     parsed.outOfMemoryAt >> 20, " MiB (the file is malformed or too large)"));
+  }
+  if (WIFSIGNALED(waitStatus) && (WTERMSIG(waitStatus) == SIGXCPU)) {
+    log->warn("asset check of {} ran out of its CPU time limit", field);
+    return absl::InvalidArgumentError(absl::StrCat(
+        field,
+        ": importing this file took more CPU time than the limit (the file is malformed or "
+        "too large)"));
+  }
   if (WIFSIGNALED(waitStatus)) {
     log->warn("asset check of {} crashed (signal {})", field, WTERMSIG(waitStatus));
     return absl::InvalidArgumentError(
@@ -98,6 +132,23 @@ absl::Status RunAssetCheck(std::vector<std::string> argv, std::chrono::seconds t
   return parsed.status;
 }
 
+void ApplyAssetCheckLimits(const AssetCheckLimits& limits) {
+  const auto apply = [](int resource, int64_t value, rlim_t hard, const char* name) {
+    if (value <= 0) return;
+    const rlimit limit{rlim_t(value), hard};
+    if (::setrlimit(resource, &limit) != 0)
+      Logger("assets")->warn("setrlimit {}: {}", name, std::strerror(errno));
+  };
+  if (limits.memoryBytes > 0) {
+    std::snprintf(gOutOfMemoryLine, sizeof gOutOfMemoryLine, "memory %lld\n",
+                  static_cast<long long>(limits.memoryBytes));
+    std::set_new_handler(OnOutOfMemory);
+  }
+  apply(RLIMIT_DATA, limits.memoryBytes, rlim_t(limits.memoryBytes), "RLIMIT_DATA");
+  // A soft CPU limit sends SIGXCPU, the hard one a second later SIGKILL.
+  apply(RLIMIT_CPU, limits.cpuSeconds, rlim_t(limits.cpuSeconds + 1), "RLIMIT_CPU");
+}
+
 int ReportAssetCheck(const absl::Status& status) {
   std::printf("status %d\n%s", int(status.code()), std::string(status.message()).c_str());
   std::fflush(stdout);
@@ -109,7 +160,9 @@ int ReportJobAssets(const v1::JobSpec& spec, const AssetSource& assets, const Jo
   return ReportAssetCheck(BuildBakeJob(spec, announcing, limits).status());
 }
 
-int RunLocalAssetCheckChild(const std::string& jobPath, const JobLimits& limits) {
+int RunLocalAssetCheckChild(const std::string& jobPath, const JobLimits& limits,
+                            const AssetCheckLimits& resources) {
+  ApplyAssetCheckLimits(resources);
   absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
   if (!spec.ok()) return ReportAssetCheck(spec.status());
   const LocalAssetSource files(JobFileDir(jobPath), "", limits.maxAssetBytes);

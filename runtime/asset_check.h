@@ -6,8 +6,15 @@
 // stdout:
 //   one line "asset <fieldPath>" as it starts reading each asset, then "status <code>" and the
 //   status message to the end.
-// The parent turns a child killed by a signal or past the time limit into INVALID_ARGUMENT naming
-// the asset the child was reading; a clean report is returned as the child's status. Importing is
+// The parent turns a child killed by a signal, past the time limit or out of its memory limit into
+// INVALID_ARGUMENT naming the asset the child was reading; a clean report is returned as the
+// child's status.
+//
+// The child runs under resource limits (AssetCheckLimits), so that a file that makes the importer
+// allocate without end (one of assimp's known failures) is refused instead of exhausting the
+// machine: RLIMIT_DATA for memory (heap and anonymous mappings: what an importer allocates, and
+// not the shared libraries an address-space limit would also count), RLIMIT_CPU for CPU time.
+// An allocation past the limit makes the child report "memory <limit>" and exit. Importing is
 // deterministic, so a job the child built the parent builds the same way.
 //
 // Children: a local bake runs `probebake check-assets JOB.json` (RunLocalAssetCheckChild, which
@@ -25,6 +32,18 @@
 
 namespace probebake::runtime {
 
+// Resource limits of an asset-check child; 0 means none.
+struct AssetCheckLimits {
+  // Data segment and anonymous memory, bytes (RLIMIT_DATA).
+  int64_t memoryBytes = int64_t(8) << 30;
+  // CPU seconds (RLIMIT_CPU; the child gets SIGXCPU past them, SIGKILL a second later).
+  int64_t cpuSeconds = 0;
+};
+
+// The child's side: applies `limits` to this process and arranges for an allocation past the
+// memory limit to be reported (see above). Call first thing in the child.
+void ApplyAssetCheckLimits(const AssetCheckLimits& limits);
+
 // The parent's side: runs the check command `argv` (a child writing the report above) and
 // interprets its outcome as described above. INTERNAL when the child could not be run or ended
 // without a report.
@@ -39,8 +58,10 @@ int ReportJobAssets(const v1::JobSpec& spec, const AssetSource& assets, const Jo
 // Returns the exit code, 0.
 int ReportAssetCheck(const absl::Status& status);
 
-// The local CLI's child: reads the job file at `jobPath` and reports its assets as a local bake
-// reads them (the job's files). Returns the exit code (0 when a report was written).
-int RunLocalAssetCheckChild(const std::string& jobPath, const JobLimits& limits);
+// The local CLI's child: applies `resources`, reads the job file at `jobPath` and reports its
+// assets as a local bake reads them (the job's files). Returns the exit code (0 when a report was
+// written).
+int RunLocalAssetCheckChild(const std::string& jobPath, const JobLimits& limits,
+                            const AssetCheckLimits& resources = {});
 
 }  // namespace probebake::runtime

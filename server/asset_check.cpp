@@ -62,7 +62,9 @@ absl::Status AssetCheck::CheckInChild(const std::string& specBytes) const {
 }
 
 int RunAssetCheckChild(const std::filesystem::path& specFile, const std::filesystem::path& dataDir,
-                       int64_t maxBlobBytes, const JobLimits& limits) {
+                       int64_t maxBlobBytes, const JobLimits& limits,
+                       const runtime::AssetCheckLimits& resources) {
+  runtime::ApplyAssetCheckLimits(resources);
   absl::StatusOr<std::string> bytes = runtime::ReadWholeFile(specFile);
   if (!bytes.ok()) return runtime::ReportAssetCheck(absl::InternalError(bytes.status().message()));
   v1::JobSpec spec;

@@ -15,6 +15,7 @@
 #include "absl/status/status.h"
 #include "probebake/job/limits.h"
 #include "probebake/v1/job.pb.h"
+#include "runtime/asset_check.h"
 
 namespace probebake::server {
 
@@ -41,10 +42,12 @@ class AssetCheck {
   mutable std::set<std::string> passed_;  // SHA-256 of the specs that passed
 };
 
-// The server's child: reads the JobSpec (binary protobuf) at `specFile`, builds it over the blob
-// store under `dataDir` with `limits`, and writes the report (runtime/asset_check.h) to stdout.
-// Returns the process exit code (0 when a report was written, whatever its status).
+// The server's child: applies `resources`, reads the JobSpec (binary protobuf) at `specFile`,
+// builds it over the blob store under `dataDir` with `limits`, and writes the report
+// (runtime/asset_check.h) to stdout. Returns the process exit code (0 when a report was written,
+// whatever its status).
 int RunAssetCheckChild(const std::filesystem::path& specFile, const std::filesystem::path& dataDir,
-                       int64_t maxBlobBytes, const JobLimits& limits);
+                       int64_t maxBlobBytes, const JobLimits& limits,
+                       const runtime::AssetCheckLimits& resources);
 
 }  // namespace probebake::server

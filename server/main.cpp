@@ -105,6 +105,12 @@ int main(int argc, char** argv) {
                  "that a file that crashes or hangs the importer cannot take the server with it)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  int64_t assetCheckMemoryMb = 8192;
+  app.add_option("--asset-check-memory-mb", assetCheckMemoryMb,
+                 "Memory (MiB of heap and anonymous mappings) a job's files may take to import; "
+                 "0: no limit")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   // The child side of that check (asset_check.h); not for people.
   std::string checkJobAssets;
   app.add_option("--check-job-assets", checkJobAssets)->group("");
@@ -173,7 +179,12 @@ int main(int argc, char** argv) {
   if (!checkJobAssets.empty()) {
     // The server logs what matters about the check; the child stays quiet.
     probebake::SetLogLevel(spdlog::level::warn);
-    return srv::RunAssetCheckChild(checkJobAssets, dataDir, options.maxBlobBytes, options.limits);
+    // CPU time: the wall-clock limit's worth (the parent kills the child past it anyway; this
+    // catches a child whose threads burn more CPU than wall time).
+    const probebake::runtime::AssetCheckLimits resources{assetCheckMemoryMb << 20,
+                                                         int64_t(assetCheckSeconds)};
+    return srv::RunAssetCheckChild(checkJobAssets, dataDir, options.maxBlobBytes, options.limits,
+                                   resources);
   }
   probebake::SetLogLevel(spdlog::level::from_str(logLevel));
   options.dataDir = dataDir;

@@ -3,6 +3,7 @@
 #include "server/asset_check.h"
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -97,6 +98,51 @@ TEST(AssetCheck, AHangIsKilledAtTheTimeLimit) {
             "(the file is malformed or too large)");
 }
 
+TEST(AssetCheck, ResourceLimitsNameTheAssetAndTheLimit) {
+  // The child's reports of its limits (runtime/asset_check.h): an allocation past the memory
+  // limit, and SIGXCPU past the CPU limit.
+  const absl::Status memory =
+      Child("echo asset scene.meshes[0].blob; echo memory 268435456; exit 86")
+          .Check(JobWithAMeshBlob());
+  EXPECT_EQ(memory.code(), absl::StatusCode::kInvalidArgument) << memory;
+  EXPECT_EQ(memory.message(),
+            "scene.meshes[0].blob: importing this file needs more memory than the limit of 256 "
+            "MiB (the file is malformed or too large)");
+  const absl::Status cpu =
+      Child("echo asset scene.meshes[0].blob; kill -XCPU $$").Check(JobWithAMeshBlob());
+  EXPECT_EQ(cpu.code(), absl::StatusCode::kInvalidArgument) << cpu;
+  EXPECT_EQ(cpu.message(),
+            "scene.meshes[0].blob: importing this file took more CPU time than the limit (the "
+            "file is malformed or too large)");
+  // Exit code 86 without the memory line is no such report.
+  EXPECT_EQ(Child("exit 86").Check(JobWithAMeshBlob()).code(), absl::StatusCode::kInternal);
+}
+
+TEST(AssetCheck, AnAllocationPastTheMemoryLimitEndsTheChildWithItsReport) {
+  // The real limit in a forked child: RLIMIT_DATA of 256 MiB, then 2 GiB asked for.
+  int out[2];
+  ASSERT_EQ(pipe(out), 0);
+  const pid_t pid = fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    dup2(out[1], STDOUT_FILENO);
+    runtime::ApplyAssetCheckLimits({int64_t(256) << 20, 0});
+    char* volatile block = new char[size_t(2) << 30];
+    block[0] = 1;
+    _exit(0);  // not reached
+  }
+  close(out[1]);
+  std::string report;
+  char buffer[256];
+  for (ssize_t n; (n = read(out[0], buffer, sizeof buffer)) > 0;) report.append(buffer, size_t(n));
+  close(out[0]);
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status)) << status;
+  EXPECT_EQ(WEXITSTATUS(status), 86);
+  EXPECT_EQ(report, "memory 268435456\n");
+}
+
 TEST(AssetCheck, NoReportIsAnInternalError) {
   const absl::Status silent = Child("exit 5").Check(JobWithAMeshBlob());
   EXPECT_EQ(silent.code(), absl::StatusCode::kInternal) << silent;
@@ -118,7 +164,8 @@ TEST(AssetCheck, TheChildLeavesTheServersScratchFilesAlone) {
   const std::filesystem::path inUse = data / "tmp" / "job.vdb", spec = data / "tmp" / "spec.pb";
   std::ofstream(inUse) << "volume being written";
   std::ofstream(spec, std::ios::binary) << JobWithAMeshBlob().SerializeAsString();
-  EXPECT_EQ(RunAssetCheckChild(spec, data, 1 << 20, JobLimits()), 0);  // reports the missing blob
+  EXPECT_EQ(RunAssetCheckChild(spec, data, 1 << 20, JobLimits(), {0, 0}),
+            0);  // reports the missing blob
   EXPECT_TRUE(std::filesystem::exists(inUse));
   EXPECT_TRUE(std::filesystem::exists(spec));
   EXPECT_EQ(BlobStore::OpenForReading(data / "absent", 1 << 20).status().code(),
