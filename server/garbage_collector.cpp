@@ -121,12 +121,13 @@ absl::StatusOr<GcReport> GarbageCollector::CollectNow() {
     if (blobs_->Contains(result.volume())) continue;
     // Only if unchanged: a bake of the same job may have stored a new volume meanwhile.
     bool dropped = false;
-    PB_RETURN_IF_ERROR(jobs_->Transaction([&, &jobDigest = jobDigest]() -> absl::Status {
-      PB_ASSIGN_OR_RETURN(std::optional<v1::BakeJobResult> now, jobs_->GetCached(jobDigest));
-      if (!now || now->volume().hash() != result.volume().hash()) return absl::OkStatus();
-      dropped = true;
-      return jobs_->DeleteCached(jobDigest);
-    }));
+    PB_RETURN_IF_ERROR(
+        jobs_->Transaction([&, &jobDigest = jobDigest, &result = result]() -> absl::Status {
+          PB_ASSIGN_OR_RETURN(std::optional<v1::BakeJobResult> now, jobs_->GetCached(jobDigest));
+          if (!now || now->volume().hash() != result.volume().hash()) return absl::OkStatus();
+          dropped = true;
+          return jobs_->DeleteCached(jobDigest);
+        }));
     report.cacheEntries += dropped ? 1 : 0;
   }
 

@@ -275,7 +275,8 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
     }
   }
   if (headers.size() != expected.size()) {
-    for (const auto& [name, header] : headers) {
+    for (const auto& entry : headers) {
+      const std::string& name = entry.first;  // (clang 14 cannot capture a structured binding)
       const bool known = std::any_of(expected.begin(), expected.end(),
                                      [&name](const ExpectedGrid& e) { return e.name == name; });
       if (!known) {
