@@ -27,12 +27,16 @@ export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 failed=()
 for t in "${TARGETS[@]}"; do
   mkdir -p "$FUZZ_DIR/$t" "$BUILD_DIR/findings/$t"
-  maxLen=65536
+  maxLen=65536 extra=()
   [ "$t" = volume_read_fuzz ] && maxLen=262144  # a small volume's metadata alone is ~100 kB
+  # assimp crashes on some files (the asset-check child contains that: docs/hardening.md); the
+  # mesh target goes on past its crashes and lists them, to be triaged by their stacks.
+  [ "$t" = mesh_import_fuzz ] && extra=(-fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1)
   echo "== $t: ${SECONDS_PER_TARGET} s"
   if ! "$BUILD_DIR/bin/$t" "$FUZZ_DIR/$t" "tests/fuzz/corpus/$t" \
       -max_total_time="$SECONDS_PER_TARGET" -timeout=20 -rss_limit_mb=4096 -max_len="$maxLen" \
-      -artifact_prefix="$BUILD_DIR/findings/$t/" -print_final_stats=1 2>"$BUILD_DIR/findings/$t/log"; then
+      -artifact_prefix="$BUILD_DIR/findings/$t/" -print_final_stats=1 "${extra[@]}" \
+      2>"$BUILD_DIR/findings/$t/log"; then
     failed+=("$t")
     tail -40 "$BUILD_DIR/findings/$t/log"
   fi

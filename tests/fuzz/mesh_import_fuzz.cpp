@@ -14,7 +14,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (size < 1) return 0;
   static const char* const kFormats[] = {"obj", "ply", "gltf", "glb"};
   probebake::v1::JobSpec spec;
+  probebake::v1::Material* material = spec.mutable_scene()->add_materials();
+  material->set_name("m");
+  for (int c = 0; c < 3; ++c) material->add_albedo(0.5);
   probebake::v1::Mesh* mesh = spec.mutable_scene()->add_meshes();
+  mesh->set_material("m");
   mesh->set_file(std::string("m.") + kFormats[data[0] % 4]);
   spec.mutable_grid()->add_min(0), spec.mutable_grid()->add_min(0), spec.mutable_grid()->add_min(0);
   spec.mutable_grid()->add_max(0), spec.mutable_grid()->add_max(0), spec.mutable_grid()->add_max(0);

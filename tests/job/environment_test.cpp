@@ -257,6 +257,16 @@ TEST(EnvironmentMap, BadMapsAreRejectedWithThePath) {
   EXPECT_TRUE(HasFieldError(BuildEnvJob(dir, R"({"file": "garbage.exr"})").status(),
                             "scene.environment.map.file",
                             "\"garbage.exr\" is neither an OpenEXR nor a Radiance HDR file"));
+  // A header attribute declaring more bytes than the file holds is refused before OpenEXR
+  // allocates them.
+  std::string lying = ReadText(dir.File("big.exr"));
+  const size_t channels = lying.find(std::string("channels\0chlist\0", 16));
+  ASSERT_NE(channels, std::string::npos);
+  lying.replace(channels + 16, 4, std::string("\xff\xff\xff\x7f", 4));
+  dir.Write("lying.exr", lying);
+  EXPECT_TRUE(HasFieldError(BuildEnvJob(dir, R"({"file": "lying.exr"})").status(),
+                            "scene.environment.map.file",
+                            "its header attribute \"channels\" declares 2147483647 bytes"));
   // A truncated file fails cleanly too.
   const std::string whole = ReadText(dir.File("big.exr"));
   dir.Write("truncated.exr", whole.substr(0, whole.size() / 2));

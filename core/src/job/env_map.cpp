@@ -11,6 +11,7 @@
 #include <cstring>
 #include <exception>
 #include <memory>
+#include <mutex>
 #include <stdexcept>
 
 #include "probebake/base/status.h"
@@ -41,6 +42,9 @@ class MemoryIStream final : public Imf::IStream {
   uint64_t position_ = 0;
 };
 
+// The largest tile side an OpenEXR environment may declare (tiles are buffered whole).
+constexpr int kMaxTileSide = 4096;
+
 bool IsOpenExr(std::string_view bytes) {
   return bytes.size() >= 4 && bytes.substr(0, 4) == std::string_view("\x76\x2f\x31\x01", 4);
 }
@@ -48,6 +52,46 @@ bool IsOpenExr(std::string_view bytes) {
 // Radiance files start with "#?" and a program name ("#?RADIANCE", "#?RGBE").
 bool IsRadianceHdr(std::string_view bytes) {
   return bytes.size() >= 2 && bytes.substr(0, 2) == "#?";
+}
+
+// OpenEXR allocates each header attribute at the size the file declares before reading it, so a
+// damaged file can make it allocate gigabytes: every attribute's size is checked against the
+// bytes left first. "" when the headers fit, else what does not.
+std::string ExrHeaderProblem(std::string_view bytes) {
+  constexpr uint32_t kMultiPart = 0x1000;
+  if (bytes.size() < 8) return "it ends inside its version field";
+  size_t at = 8;  // magic and version
+  const uint32_t version = uint32_t(uint8_t(bytes[4])) | uint32_t(uint8_t(bytes[5])) << 8 |
+                           uint32_t(uint8_t(bytes[6])) << 16 | uint32_t(uint8_t(bytes[7])) << 24;
+  const auto zeroTerminated = [&](std::string* out) {
+    const size_t end = bytes.find('\0', at);
+    if (end == std::string_view::npos || end - at > 255) return false;
+    *out = std::string(bytes.substr(at, end - at));
+    at = end + 1;
+    return true;
+  };
+  for (;;) {
+    for (;;) {
+      std::string name, type;
+      if (!zeroTerminated(&name)) return "its header is cut short or has a name over 255 bytes";
+      if (name.empty()) break;  // the end of this header
+      if (!zeroTerminated(&type) || bytes.size() - at < 4)
+        return "its header is cut short at attribute \"" + name + "\"";
+      const int32_t size =
+          int32_t(uint32_t(uint8_t(bytes[at])) | uint32_t(uint8_t(bytes[at + 1])) << 8 |
+                  uint32_t(uint8_t(bytes[at + 2])) << 16 | uint32_t(uint8_t(bytes[at + 3])) << 24);
+      at += 4;
+      if (size < 0 || uint64_t(size) > bytes.size() - at) {
+        return "its header attribute \"" + name + "\" declares " + std::to_string(size) +
+               " bytes; " + std::to_string(bytes.size() - at) + " are left";
+      }
+      at += size_t(size);
+    }
+    // A single-part file has one header; a multi-part file lists them until an empty one.
+    if (!(version & kMultiPart)) return "";
+    if (at >= bytes.size()) return "its header list is cut short";
+    if (bytes[at] == '\0') return "";
+  }
 }
 
 absl::Status CheckSize(int64_t width, int64_t height, int64_t maxPixels, const std::string& what,
@@ -89,6 +133,27 @@ absl::Status DecodeOpenExr(std::string_view bytes, const std::string& what,
                            bool* cubeTagged) {
   EnvironmentMap& map = *out;
   try {
+    if (const std::string problem = ExrHeaderProblem(bytes); !problem.empty())
+      return FieldError(fieldPath, "cannot read " + what + " as OpenEXR: " + problem);
+    {
+      // The header alone first: opening the file sizes OpenEXR's buffers by the data window (and
+      // tiles), which a damaged file can declare as large as it likes.
+      static std::once_flag tiles;
+      std::call_once(tiles, [] { Imf::Header::setMaxTileSize(kMaxTileSide, kMaxTileSide); });
+      MemoryIStream headerStream(bytes);
+      headerStream.seekg(4);
+      char versionBytes[4];
+      headerStream.read(versionBytes, 4);
+      int version =
+          int(uint32_t(uint8_t(versionBytes[0])) | uint32_t(uint8_t(versionBytes[1])) << 8 |
+              uint32_t(uint8_t(versionBytes[2])) << 16 | uint32_t(uint8_t(versionBytes[3])) << 24);
+      Imf::Header declared;
+      declared.readFrom(headerStream, version);
+      const Imath::Box2i window = declared.dataWindow();
+      PB_RETURN_IF_ERROR(CheckSize(int64_t(window.max.x) - window.min.x + 1,
+                                   int64_t(window.max.y) - window.min.y + 1, maxPixels, what,
+                                   fieldPath));
+    }
     MemoryIStream stream(bytes);
     Imf::InputFile file(stream);
     const Imf::Header& header = file.header();
