@@ -267,6 +267,14 @@ TEST(EnvironmentMap, BadMapsAreRejectedWithThePath) {
   EXPECT_TRUE(HasFieldError(BuildEnvJob(dir, R"({"file": "lying.exr"})").status(),
                             "scene.environment.map.file",
                             "its header attribute \"channels\" declares 2147483647 bytes"));
+  // A channel list whose contents run past its declared size (OpenEXR reads it by contents, and
+  // then takes pixel bytes for the next attribute's size: env_image_fuzz found 2 GB allocations).
+  std::string shortList = ReadText(dir.File("big.exr"));
+  shortList.replace(channels + 16, 4, std::string("\x34\0\0\0", 4));  // 52; it holds 55
+  dir.Write("short_list.exr", shortList);
+  EXPECT_TRUE(HasFieldError(BuildEnvJob(dir, R"({"file": "short_list.exr"})").status(),
+                            "scene.environment.map.file",
+                            "\"channels\" (chlist) does not hold what its size of 52 bytes"));
   // A truncated file fails cleanly too.
   const std::string whole = ReadText(dir.File("big.exr"));
   dir.Write("truncated.exr", whole.substr(0, whole.size() / 2));

@@ -54,6 +54,30 @@ bool IsRadianceHdr(std::string_view bytes) {
   return bytes.size() >= 2 && bytes.substr(0, 2) == "#?";
 }
 
+// Bytes a channel list takes when read by its contents, as OpenEXR reads it: entries of a
+// zero-terminated name and 16 bytes (pixel type, pLinear, 3 reserved, x and y sampling), ended by
+// an empty name. npos when it runs past `value`.
+size_t ChannelListBytes(std::string_view value) {
+  size_t at = 0;
+  for (;;) {
+    const size_t end = value.find('\0', at);
+    if (end == std::string_view::npos) return std::string_view::npos;
+    if (end == at) return at + 1;  // the empty name ending the list
+    at = end + 1 + 16;
+    if (at > value.size()) return std::string_view::npos;
+  }
+}
+
+// Bytes a preview image takes by its contents: width and height (uint32), then 4 bytes a pixel.
+uint64_t PreviewBytes(std::string_view value) {
+  if (value.size() < 8) return UINT64_MAX;
+  const auto u32 = [&](size_t i) {
+    return uint64_t(uint8_t(value[i])) | uint64_t(uint8_t(value[i + 1])) << 8 |
+           uint64_t(uint8_t(value[i + 2])) << 16 | uint64_t(uint8_t(value[i + 3])) << 24;
+  };
+  return 8 + 4 * u32(0) * u32(4);
+}
+
 // OpenEXR allocates each header attribute at the size the file declares before reading it, so a
 // damaged file can make it allocate gigabytes: every attribute's size is checked against the
 // bytes left first. "" when the headers fit, else what does not.
@@ -84,6 +108,15 @@ std::string ExrHeaderProblem(std::string_view bytes) {
       if (size < 0 || uint64_t(size) > bytes.size() - at) {
         return "its header attribute \"" + name + "\" declares " + std::to_string(size) +
                " bytes; " + std::to_string(bytes.size() - at) + " are left";
+      }
+      // OpenEXR reads these two by their contents, not by the declared size (a preview's pixels
+      // are allocated from its width and height): contents and size must agree, or the reader
+      // parts from this walk and sizes its buffers from bytes that are not sizes.
+      const std::string_view value = bytes.substr(at, size_t(size));
+      if ((type == "chlist" && ChannelListBytes(value) != size_t(size)) ||
+          (type == "preview" && PreviewBytes(value) != uint64_t(size))) {
+        return "its header attribute \"" + name + "\" (" + type +
+               ") does not hold what its size of " + std::to_string(size) + " bytes declares";
       }
       at += size_t(size);
     }
