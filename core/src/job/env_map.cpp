@@ -15,7 +15,23 @@
 #include <stdexcept>
 
 #include "probebake/base/status.h"
+
+// stb_image compiled here, static and for Radiance files only: libraries this one links (assimp's
+// draco) carry their own copies of stb_image's symbols, so a call to a shared stbi_* function
+// could run another version's decoder; static functions are this file's own.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wshadow"
+#pragma GCC diagnostic ignored "-Wpedantic"
+#pragma GCC diagnostic ignored "-Wsign-compare"
+#pragma GCC diagnostic ignored "-Wunused-function"
+#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
+#pragma GCC diagnostic ignored "-Wimplicit-fallthrough"
+#define STB_IMAGE_STATIC
+#define STB_IMAGE_IMPLEMENTATION
+#define STBI_ONLY_HDR
+#define STBI_NO_STDIO
 #include "stb_image.h"
+#pragma GCC diagnostic pop
 #include "text.h"
 
 namespace probebake::job_internal {
