@@ -1,0 +1,114 @@
+#include "probebake/volume/probe_sampler.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "probebake/sh/sh_basis.h"
+#include "probebake/sh/sh_convolution.h"
+#include "probebake/volume/visibility_map.h"
+
+namespace probebake {
+namespace {
+
+// DDGI's constants: weights below kCrush are crushed toward 0; none falls below kMinWeight.
+constexpr double kCrush = 0.2;
+constexpr double kMinWeight = 1e-6;
+
+}  // namespace
+
+ProbeSampler::ProbeSampler(const ProbeVolume& volume, ProbeSamplerOptions options)
+    : volume_(volume), options_(options) {
+  const Vec3d& s = volume.grid.spacing;
+  bias_ = options.normalBias * std::min({s.x, s.y, s.z});
+  bandFactor_.assign(size_t(volume.CoeffCount()), 1.0);
+  if (volume.irradiance.empty()) {
+    for (int l = 0; l <= volume.shOrder; ++l)
+      for (int m = -l; m <= l; ++m) bandFactor_[size_t(ShIndex(l, m))] = IrradianceBandFactor(l);
+  }
+}
+
+ProbeSample ProbeSampler::Sample(const Vec3d& position, const Vec3d& normal) const {
+  const ProbeGrid& grid = volume_.grid;
+  const int coeffs = volume_.CoeffCount();
+  const Vec3d n = Normalize(normal);
+  const Vec3d biased = position + n * bias_;
+
+  int base[3];
+  double alpha[3];
+  for (int a = 0; a < 3; ++a) {
+    const int count = grid.counts[a];
+    const double f =
+        std::clamp((biased[a] - grid.origin[a]) / grid.spacing[a], 0.0, double(count - 1));
+    base[a] = std::min(int(std::floor(f)), std::max(count - 2, 0));
+    alpha[a] = count > 1 ? f - base[a] : 0.0;
+  }
+
+  ProbeSample out;
+  out.radianceSh.assign(size_t(coeffs), Vec3d{0, 0, 0});
+  std::vector<Vec3d> blended(size_t(coeffs), Vec3d{0, 0, 0});
+  double total = 0;
+  const bool visibility = options_.visibility && !volume_.visibility.empty();
+  for (int corner = 0; corner < 8; ++corner) {
+    int c[3];
+    double trilinear = 1;
+    for (int a = 0; a < 3; ++a) {
+      const int bit = (corner >> a) & 1;
+      c[a] = std::min(base[a] + bit, grid.counts[a] - 1);
+      trilinear *= bit ? alpha[a] : 1 - alpha[a];
+    }
+    if (trilinear <= 0) continue;
+    const int64_t p = grid.LinearIndex(c[0], c[1], c[2]);
+    const bool filled = !volume_.filled.empty() && volume_.filled[size_t(p)] > 0.5f;
+    if (!volume_.active[size_t(p)] || !(volume_.validity[size_t(p)] >= 0.5f || filled)) continue;
+    Vec3d probePos = grid.Position(c[0], c[1], c[2]);
+    if (!volume_.offset.empty()) {
+      const float* o = &volume_.offset[3 * size_t(p)];
+      probePos += Vec3d(o[0], o[1], o[2]);
+    }
+    double w = 1;
+    if (options_.backfaceWeight) {
+      const Vec3d toProbe = probePos - position;
+      const double len = Length(toProbe);
+      const double cosine = len > 0 ? Dot(toProbe / len, n) : 1.0;
+      const double h = (cosine + 1) / 2;
+      w *= h * h + 0.2;
+    }
+    if (visibility) {
+      const Vec3d fromProbe = biased - probePos;
+      const double d = Length(fromProbe);
+      if (d > 0) {
+        const float* m = &volume_.visibility[size_t(VisibilityTexel(fromProbe / d))][3 * size_t(p)];
+        const double mean = m[0];
+        if (d > mean) {
+          const double variance = std::abs(double(m[1]) - mean * mean);
+          const double excess = d - mean;
+          const double chebyshev = variance / (variance + excess * excess);
+          w *= chebyshev * chebyshev * chebyshev;
+        }
+      }
+      w = std::max(w, kMinWeight);
+      if (w < kCrush) w *= w * w / (kCrush * kCrush);
+    }
+    w *= trilinear;
+    total += w;
+    ++out.probes;
+    for (int i = 0; i < coeffs; ++i) {
+      const float* r = &volume_.radiance[size_t(i)][3 * size_t(p)];
+      out.radianceSh[size_t(i)] += Vec3d(r[0], r[1], r[2]) * w;
+      const float* e =
+          volume_.irradiance.empty() ? r : &volume_.irradiance[size_t(i)][3 * size_t(p)];
+      blended[size_t(i)] += Vec3d(e[0], e[1], e[2]) * (w * bandFactor_[size_t(i)]);
+    }
+  }
+  out.irradiance = {0, 0, 0};
+  if (total <= 0) return out;
+  std::vector<double> y(static_cast<size_t>(coeffs));
+  EvalShBasis<double>(volume_.shOrder, n, y.data());
+  for (int i = 0; i < coeffs; ++i) {
+    out.radianceSh[size_t(i)] = out.radianceSh[size_t(i)] / total;
+    out.irradiance += blended[size_t(i)] * (y[size_t(i)] / total);
+  }
+  return out;
+}
+
+}  // namespace probebake
