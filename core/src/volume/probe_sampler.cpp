@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 
 #include "probebake/sh/sh_basis.h"
 #include "probebake/sh/sh_convolution.h"
@@ -10,9 +12,13 @@
 namespace probebake {
 namespace {
 
-// DDGI's constants: weights below kCrush are crushed toward 0; none falls below kMinWeight.
+// DDGI's crushing: weights below kCrush fall toward 0 as w^3 / kCrush^2. DDGI also floors
+// weights at 1e-6, which makes a point hidden from every probe the plain blend of all 8: the
+// whole leak again, for the points next to a thin wall whose probes are all uncertain. Here the
+// floor is kMinWeight, far below any weight Chebyshev gives a probe that sees the point, so the
+// probes least hidden still win.
 constexpr double kCrush = 0.2;
-constexpr double kMinWeight = 1e-6;
+constexpr double kMinWeight = 1e-30;
 
 }  // namespace
 
@@ -27,6 +33,22 @@ ProbeSampler::ProbeSampler(const ProbeVolume& volume, ProbeSamplerOptions option
   }
 }
 
+double ProbeSampler::Chebyshev(int64_t probe, const Vec3d& probePos, const Vec3d& x) const {
+  const Vec3d fromProbe = x - probePos;
+  const double d = Length(fromProbe);
+  if (!(d > 0)) return 1;
+  // The texel holding the direction, unfiltered. (Bilinear filtering between texel centres, as
+  // DDGI samples its depth maps, leaked more through the thin wall of the leak test: a texel's
+  // neighbours see the wall at grazing angles, farther.)
+  const float* m = &volume_.visibility[size_t(VisibilityTexel(fromProbe / d))][3 * size_t(probe)];
+  const double mean = m[0], meanSq = m[1];
+  if (d <= mean) return 1;
+  const double variance = std::abs(meanSq - mean * mean);
+  const double excess = d - mean;
+  const double p = variance / (variance + excess * excess);
+  return p * p * p;
+}
+
 ProbeSample ProbeSampler::Sample(const Vec3d& position, const Vec3d& normal) const {
   const ProbeGrid& grid = volume_.grid;
   const int coeffs = volume_.CoeffCount();
@@ -38,7 +60,7 @@ ProbeSample ProbeSampler::Sample(const Vec3d& position, const Vec3d& normal) con
   for (int a = 0; a < 3; ++a) {
     const int count = grid.counts[a];
     const double f =
-        std::clamp((biased[a] - grid.origin[a]) / grid.spacing[a], 0.0, double(count - 1));
+        std::clamp((position[a] - grid.origin[a]) / grid.spacing[a], 0.0, double(count - 1));
     base[a] = std::min(int(std::floor(f)), std::max(count - 2, 0));
     alpha[a] = count > 1 ? f - base[a] : 0.0;
   }
@@ -74,22 +96,17 @@ ProbeSample ProbeSampler::Sample(const Vec3d& position, const Vec3d& normal) con
       w *= h * h + 0.2;
     }
     if (visibility) {
-      const Vec3d fromProbe = biased - probePos;
-      const double d = Length(fromProbe);
-      if (d > 0) {
-        const float* m = &volume_.visibility[size_t(VisibilityTexel(fromProbe / d))][3 * size_t(p)];
-        const double mean = m[0];
-        if (d > mean) {
-          const double variance = std::abs(double(m[1]) - mean * mean);
-          const double excess = d - mean;
-          const double chebyshev = variance / (variance + excess * excess);
-          w *= chebyshev * chebyshev * chebyshev;
-        }
-      }
+      w *= std::min(Chebyshev(p, probePos, biased), Chebyshev(p, probePos, position));
       w = std::max(w, kMinWeight);
       if (w < kCrush) w *= w * w / (kCrush * kCrush);
     }
     w *= trilinear;
+    if (getenv("SAMPLER_DEBUG"))
+      std::fprintf(stderr, "  probe (%g %g %g) tri %g chebB %g chebP %g w %g E0 %g\n", probePos.x,
+                   probePos.y, probePos.z, trilinear,
+                   visibility ? Chebyshev(p, probePos, biased) : -1,
+                   visibility ? Chebyshev(p, probePos, position) : -1, w,
+                   volume_.radiance[0][3 * size_t(p)]);
     total += w;
     ++out.probes;
     for (int i = 0; i < coeffs; ++i) {
