@@ -5,6 +5,7 @@
 //   probebake plan JOB.json --shards N [--json]
 //   probebake merge PART.vdb... -o OUT.vdb
 //   probebake inspect OUT.vdb [--json] [--slice AXIS=VALUE -o PNG]
+//   probebake sample OUT.vdb --points POINTS.json
 //   probebake submit JOB.json [--wait] [-o OUT.vdb] [--skip-cache] [--request-id ID]
 //   probebake watch NAME | status NAME | fetch NAME -o OUT.vdb | cancel NAME | delete NAME | list
 //   client options: --server ADDR ($PROBEBAKE_SERVER, default 127.0.0.1:50051),
@@ -21,6 +22,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 
 #include <CLI/CLI.hpp>
 
@@ -38,6 +41,8 @@
 #include "probebake/job/job_json.h"
 #include "probebake/job/validate.h"
 #include "probebake/volume/irradiance_slice.h"
+#include "probebake/volume/probe_sampler.h"
+#include "probebake/volume/sample_points.h"
 #include "probebake/volume/vdb_io.h"
 #include "probebake/volume/volume_inspect.h"
 #include "probebake/volume/volume_merge.h"
@@ -341,6 +346,25 @@ int RunInspect(const std::string& path, bool json, const std::string& slice,
   return kExitOk;
 }
 
+// ---- sample ----
+
+// Prints the lighting the reference sampler (probe_sampler.h) reads at each point of
+// `pointsPath`, one JSON object per line (sample_points.h).
+int RunSample(const std::string& path, const std::string& pointsPath) {
+  std::ifstream in(pointsPath, std::ios::binary);
+  if (!in) return Fail(kExitUsage, pointsPath + ": cannot be read");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  absl::StatusOr<std::vector<SamplePoint>> points = ParseSamplePoints(text);
+  if (!points.ok())
+    return Fail(kExitUsage, pointsPath + ": " + std::string(points.status().message()));
+  absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
+  if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+  const ProbeSampler sampler(file->volume);
+  for (const SamplePoint& p : *points)
+    std::printf("%s\n", SampleJson(p, sampler.Sample(p.position, p.normal)).c_str());
+  return kExitOk;
+}
+
 // ---- merge ----
 
 // Merges the volumes of a sharded bake (volume_merge.h) into `out`.
@@ -605,6 +629,15 @@ int Main(int argc, char** argv) {
   inspect->add_option("--slice", slice, "AXIS=VALUE: render an irradiance slice to -o PNG");
   inspect->add_option("-o,--output", out, "PNG for --slice");
 
+  std::string pointsPath;
+  CLI::App* sample = app.add_subcommand(
+      "sample", "Print the irradiance and radiance SH the reference sampler reads at points");
+  sample->add_option("volume", path, "Probe volume (.vdb, docs/volume-format.md)")->required();
+  sample
+      ->add_option("--points", pointsPath,
+                   "JSON array of {\"position\": [x, y, z], \"normal\": [x, y, z]}")
+      ->required();
+
   std::vector<std::string> parts;
   CLI::App* merge =
       app.add_subcommand("merge", "Merge the volumes of sub-grids of one grid (a sharded bake)");
@@ -655,6 +688,7 @@ int Main(int argc, char** argv) {
   if (*bake) return RunBake(jobPath, out, threads, json, shardFlags);
   if (*plan) return RunPlan(jobPath, shardCount, threads, json);
   if (*inspect) return RunInspect(path, json, slice, out);
+  if (*sample) return RunSample(path, pointsPath);
   if (*merge) return RunMerge(parts, out);
   if (*submit) return RunSubmit(flags, jobPath, wait, out, skipCache, requestId);
   if (*watch) return RunWatch(flags, name);

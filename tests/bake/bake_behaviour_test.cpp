@@ -145,13 +145,12 @@ TEST(Determinism, SameBitsForAnyThreadCountAndRun) {
   EXPECT_NE(reseeded.radiance[0], one.radiance[0]);
 }
 
-TEST(Determinism, ShardedGridGivesTheSameBitsAsTheWholeGrid) {
-  // The sharding of a grid across machines does not change a result (docs/job-format.md). A 4x3x3
-  // grid and three sub-grids tiling it, each written as a user would (its own min, typed in
-  // decimal), bake every probe to the same bits. Spacing 0.8 is not binary: the sub-grids'
-  // positions at x = 1.6 and z = 1.9 differ from the whole grid's (-0.8 + 0.8 * 3, 0.3 + 0.8 * 2)
-  // in the last bits, which the probe sites must absorb (probe_site.h).
-  BakeJob whole = DemoLikeScene();
+// The sharding of a grid across machines does not change a result (docs/job-format.md). A 4x3x3
+// grid and three sub-grids tiling it, each written as a user would (its own min, typed in
+// decimal), bake every probe to the same bits. Spacing 0.8 is not binary: the sub-grids'
+// positions at x = 1.6 and z = 1.9 differ from the whole grid's (-0.8 + 0.8 * 3, 0.3 + 0.8 * 2)
+// in the last bits, which the probe sites must absorb (probe_site.h).
+void ExpectShardsBakeAsTheWholeGrid(BakeJob whole) {
   whole.grid.counts[0] = 4;
   whole.grid.counts[2] = 3;
   whole.settings.irradiance = true;
@@ -191,11 +190,41 @@ TEST(Determinism, ShardedGridGivesTheSameBitsAsTheWholeGrid) {
               << "probe " << w << " coefficient " << c;
         }
       }
+      ASSERT_EQ(part.offset.empty(), all.offset.empty());
+      for (int ch = 0; ch < 3 && !part.offset.empty(); ++ch)
+        EXPECT_EQ(part.offset[3 * probe + ch], all.offset[3 * w + ch]) << "probe " << w;
+      ASSERT_EQ(part.visibility.size(), all.visibility.size());
+      for (size_t t = 0; t < part.visibility.size(); ++t)
+        for (int ch = 0; ch < 3; ++ch)
+          EXPECT_EQ(part.visibility[t][3 * probe + ch], all.visibility[t][3 * w + ch])
+              << "probe " << w << " texel " << t;
       ++compared;
     }
   }
   EXPECT_EQ(compared, 36);  // the shards tile the whole grid
   EXPECT_GT(movedPositions, 0) << "the shards did not exercise rounding differences";
+}
+
+TEST(Determinism, ShardedGridGivesTheSameBitsAsTheWholeGrid) {
+  ExpectShardsBakeAsTheWholeGrid(DemoLikeScene());
+}
+
+TEST(Determinism, ShardedGridWithRelocationAndVisibilityGivesTheSameBits) {
+  // A post through the grid point (0.8, 0, 0.3) and the floor 0.3 below the lowest layer: with
+  // R = 0.4 * 0.8 = 0.32 and clearance 0.08, that probe moves out of the post.
+  BakeJob job = DemoLikeScene();
+  const uint32_t grey = AddMaterial(&job.scene, {0.5, 0.5, 0.5});
+  AddBox(&job.scene, {0.7, -0.1, 0}, {0.9, 0.1, 0.5}, grey, /*inward=*/false);
+  job.settings.relocationMaxOffset = 0.4;
+  job.settings.visibility = true;
+  BakeJob whole = job;
+  whole.grid.counts[0] = 4;
+  whole.grid.counts[2] = 3;
+  const ProbeVolume all = BakeOrDie(whole, 2);
+  int moved = 0;
+  for (float x : all.offset) moved += x != 0 ? 1 : 0;
+  EXPECT_GT(moved, 0) << "no probe was relocated";
+  ExpectShardsBakeAsTheWholeGrid(job);
 }
 
 TEST(Determinism, ResumedBakeGivesTheSameBits) {

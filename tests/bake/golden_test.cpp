@@ -59,6 +59,10 @@ std::string HashVolume(const ProbeVolume& v) {
   addFloats(v.sampleCount);
   addFloats(v.autoWindowT);
   bytes += v.window;
+  // Format 3's optional planes, only when present: hashes of bakes without them are unchanged.
+  if (!v.offset.empty()) addFloats(v.offset);
+  if (!v.filled.empty()) addFloats(v.filled);
+  for (const auto& plane : v.visibility) addFloats(plane);
   return Sha256Hex(bytes);
 }
 
@@ -186,6 +190,11 @@ std::vector<GoldenCase> Cases() {
          spec.mutable_settings()->set_samples_per_probe(128);
          return spec;
        }},
+      // Relocation (grid points inside the demo's boxes and on its floor move) and visibility.
+      {"demo_relocation_visibility", demoWith([](Settings* s) {
+         s->set_relocation_max_offset(0.4);
+         s->set_visibility(true);
+       })},
       {"all_lights", AllLightsSpec},
       {"all_lights_independent",
        [] {
@@ -294,6 +303,11 @@ TEST(GoldenBits, TheHashSeesEveryStoredNumber) {
       [](ProbeVolume* x) {
         x->autoWindowT = {0, 0.1f};
       },
+      [](ProbeVolume* x) { x->offset = {0, 0, 0, 0, 0, 0.125f}; },
+      [](ProbeVolume* x) {
+        x->filled = {0, 1};
+      },
+      [](ProbeVolume* x) { x->visibility.assign(64, std::vector<float>(6, 1.0f)); },
   };
   for (size_t k = 0; k < nudges.size(); ++k) {
     ProbeVolume changed = v;

@@ -315,6 +315,13 @@ TEST(ValidateJobSpec, SettingsRanges) {
   EXPECT_TRUE(HasFieldError(CheckPatched("settings.backfaceFraction", "0"),
                             "settings.backfaceFraction", "(0, 1]"));
   EXPECT_TRUE(CheckPatched("settings.backfaceFraction", "1").ok());
+  EXPECT_TRUE(HasFieldError(CheckPatched("settings.relocationMaxOffset", "0.6"),
+                            "settings.relocationMaxOffset", "[0, 0.5]"));
+  EXPECT_TRUE(HasFieldError(CheckPatched("settings.relocationMaxOffset", "-0.1"),
+                            "settings.relocationMaxOffset", "[0, 0.5]"));
+  EXPECT_TRUE(CheckPatched("settings.relocationMaxOffset", "0.5").ok());
+  EXPECT_TRUE(CheckPatched("settings.relocationMaxOffset", "0").ok());
+  EXPECT_TRUE(CheckPatched("settings.visibility", "true").ok());
   EXPECT_TRUE(HasFieldError(CheckPatched("settings.rrMinDepth", "0"), "settings.rrMinDepth",
                             "must be >= 1"));
 }

@@ -1,6 +1,7 @@
 // Write -> read round trips of the probe volume file (docs/volume-format.md), bit for bit, and the
 // writer's and reader's error paths that need no hand-made OpenVDB file.
 #include "probebake/volume/vdb_io.h"
+#include "probebake/volume/visibility_map.h"
 
 #include <gtest/gtest.h>
 
@@ -58,6 +59,12 @@ void ExpectSameVolume(const ProbeVolume& expected, const ProbeVolume& got) {
   ExpectSameBits(expected.stdError, got.stdError, "stdError");
   ExpectSameBits(expected.stdErrorL0, got.stdErrorL0, "stdErrorL0");
   ExpectSameBits(expected.sampleCount, got.sampleCount, "sampleCount");
+  ExpectSameBits(expected.offset, got.offset, "offset");
+  ExpectSameBits(expected.filled, got.filled, "filled");
+  ASSERT_EQ(expected.visibility.size(), got.visibility.size());
+  for (size_t t = 0; t < expected.visibility.size(); ++t)
+    ExpectSameBits(expected.visibility[t], got.visibility[t],
+                   "visibility[" + std::to_string(t) + "]");
   EXPECT_EQ(expected.window, got.window);
   EXPECT_EQ(expected.stats.wallSeconds, got.stats.wallSeconds);
   EXPECT_EQ(expected.stats.threads, got.stats.threads);
@@ -120,6 +127,44 @@ INSTANTIATE_TEST_SUITE_P(
                       RoundTripCase{"L1EveryProbeInactive", {2, 3, 2}, 1, false, 1}),
     [](const ::testing::TestParamInfo<RoundTripCase>& param) { return param.param.name; });
 
+// Format 3's optional grids: relocation offsets, dilation flags and the 64 visibility planes.
+TEST(VdbIo, OffsetsFilledFlagsAndVisibilityReadBackBitIdentical) {
+  TestVolumeSpec spec;
+  ProbeVolume volume = MakeTestVolume(spec);
+  const size_t probes = volume.active.size();
+  volume.offset.assign(3 * probes, 0.0f);
+  volume.filled.assign(probes, 0.0f);
+  volume.visibility.assign(kVisibilityTexels, std::vector<float>(3 * probes, 0.0f));
+  for (size_t p = 0; p < probes; ++p) {
+    if (!volume.active[p]) continue;
+    for (int ch = 0; ch < 3; ++ch) volume.offset[3 * p + ch] = 0.01f * float(p) - 0.1f * float(ch);
+    volume.filled[p] = float(p % 3 == 0);
+    for (int t = 0; t < kVisibilityTexels; ++t) {
+      volume.visibility[t][3 * p] = 0.5f + 0.001f * float(t + int(p));
+      volume.visibility[t][3 * p + 1] = 0.3f + 0.002f * float(t);
+      volume.visibility[t][3 * p + 2] = float(t % 5);
+    }
+  }
+  TempDir dir;
+  const std::string path = dir.File("volume.vdb");
+  PB_ASSERT_OK(WriteProbeVolume(path, volume, MakeTestMetadata()));
+  const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->format, kProbeVolumeFormat);
+  EXPECT_EQ(read->rawMetadata.at("visibility_size"), "8");
+  EXPECT_EQ(read->rawMetadata.at("has_offset"), "true");
+  ExpectSameVolume(volume, read->volume);
+
+  // Without them: no such grids, and the metadata says so.
+  ProbeVolume plain = MakeTestVolume(spec);
+  PB_ASSERT_OK(WriteProbeVolume(path, plain, MakeTestMetadata()));
+  const absl::StatusOr<ProbeVolumeFile> again = ReadProbeVolume(path);
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_EQ(again->rawMetadata.at("visibility_size"), "0");
+  EXPECT_TRUE(again->volume.offset.empty());
+  EXPECT_TRUE(again->volume.visibility.empty());
+}
+
 // Spacings such as 2/3 = (2 - 0) / (4 - 1) and origins far from 0 read back: the file's
 // grid_min and grid_spacing are authoritative and restore the written doubles exactly, the
 // transform only has to agree with them (vdb_layout_test checks the transform itself).
@@ -157,7 +202,11 @@ TEST(VdbIo, RawMetadataHoldsEveryKeyAsText) {
   const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
   ASSERT_TRUE(read.ok()) << read.status();
   const std::map<std::string, std::string> expected = {
-      {"probebake_format", "2"},
+      {"probebake_format", "3"},
+      {"has_offset", "false"},
+      {"has_filled", "false"},
+      {"visibility_size", "0"},
+      {"visibility_max_distance", "0"},
       {"sh_order", "2"},
       {"sh_basis", "real-orthonormal-condon-shortley-zpolar"},
       {"sh_window", "HANNING"},

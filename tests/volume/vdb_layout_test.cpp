@@ -208,7 +208,11 @@ TEST_F(VdbLayout, FileMetadataKeysTypesAndValues) {
                       {"grid_min", "vec3d"},
                       {"grid_spacing", "vec3d"},
                       {"grid_placement", "string"},
-                      {"grid_surface_distance", "double"}};
+                      {"grid_surface_distance", "double"},
+                      {"has_offset", "bool"},
+                      {"has_filled", "bool"},
+                      {"visibility_size", "int32"},
+                      {"visibility_max_distance", "double"}};
   std::set<std::string> names;
   for (auto it = meta->beginMeta(); it != meta->endMeta(); ++it) names.insert(it->first);
   EXPECT_EQ(names.size(), std::size(keys));
@@ -217,7 +221,7 @@ TEST_F(VdbLayout, FileMetadataKeysTypesAndValues) {
     ASSERT_TRUE(value) << key.name;
     EXPECT_EQ(value->typeName(), key.type) << key.name;
   }
-  EXPECT_EQ(meta->metaValue<int32_t>("probebake_format"), 2);
+  EXPECT_EQ(meta->metaValue<int32_t>("probebake_format"), 3);
   EXPECT_EQ(meta->metaValue<int32_t>("sh_order"), 2);
   EXPECT_EQ(meta->metaValue<std::string>("sh_basis"), "real-orthonormal-condon-shortley-zpolar");
   EXPECT_EQ(meta->metaValue<std::string>("sh_window"), "HANNING");
@@ -304,8 +308,8 @@ TEST_F(VdbLayout, ReaderRejectsBrokenFilesNamingTheGridOrKey) {
   {  // a format this reader does not know
     vdb::MetaMap::Ptr m = meta->copyMeta();
     m->removeMeta("probebake_format");
-    m->insertMeta("probebake_format", vdb::Int32Metadata(3));
-    expectError(WriteAndRead(good, *m), "probebake_format", "this reader knows 1 and 2");
+    m->insertMeta("probebake_format", vdb::Int32Metadata(4));
+    expectError(WriteAndRead(good, *m), "probebake_format", "this reader knows 1 to 3");
   }
   {  // format 1 has no std_error_l0 grid: one is not part of it
     vdb::MetaMap::Ptr m = meta->copyMeta();
@@ -501,6 +505,27 @@ TEST_F(VdbLayout, CountsComeFromTheActiveBoxWithoutGridCounts) {
   EXPECT_EQ(read->volume.active, volume_.active);
 }
 
+TEST_F(VdbLayout, ReadsFormatTwoFiles) {
+  // A format-2 file: format 3 without its optional grids and their metadata keys. It reads as a
+  // volume without offsets, dilation flags or visibility.
+  vdb::GridPtrVec grids;
+  vdb::MetaMap::Ptr meta;
+  ReadAll(path_, &grids, &meta);
+  meta->removeMeta("probebake_format");
+  meta->insertMeta("probebake_format", vdb::Int32Metadata(2));
+  for (const char* key : {"has_offset", "has_filled", "visibility_size", "visibility_max_distance"})
+    meta->removeMeta(key);
+  const std::string path = dir_.File("format2.vdb");
+  vdb::io::File(path).write(grids, *meta);
+  const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->format, 2);
+  EXPECT_EQ(read->volume.radiance, volume_.radiance);
+  EXPECT_EQ(read->volume.stdError, volume_.stdError);
+  EXPECT_TRUE(read->volume.offset.empty());
+  EXPECT_TRUE(read->volume.visibility.empty());
+}
+
 TEST_F(VdbLayout, ReadsFormatOneFiles) {
   // A format-1 file: the same grids but std_error_l0, its std_error holding the L0 figure
   // (docs/volume-format.md, migration notes). It reads as that figure in stdErrorL0, with the
@@ -511,6 +536,8 @@ TEST_F(VdbLayout, ReadsFormatOneFiles) {
   grids.erase(std::find(grids.begin(), grids.end(), Find(grids, "std_error_l0")));
   meta->removeMeta("probebake_format");
   meta->insertMeta("probebake_format", vdb::Int32Metadata(1));
+  for (const char* key : {"has_offset", "has_filled", "visibility_size", "visibility_max_distance"})
+    meta->removeMeta(key);
   const std::string path = dir_.File("format1.vdb");
   vdb::io::File(path).write(grids, *meta);
   const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
@@ -528,12 +555,12 @@ TEST_F(VdbLayout, ReadsFormatOneFiles) {
       EXPECT_EQ(v.stdError[p], 0.0f) << p;
     }
   }
-  // Written back, it is a format-2 file that says as much.
-  const std::string again = dir_.File("format2.vdb");
+  // Written back, it is a format-3 file that says as much.
+  const std::string again = dir_.File("format3.vdb");
   PB_ASSERT_OK(WriteProbeVolume(again, v, read->meta));
   const absl::StatusOr<ProbeVolumeFile> reread = ReadProbeVolume(again);
   ASSERT_TRUE(reread.ok()) << reread.status();
-  EXPECT_EQ(reread->format, 2);
+  EXPECT_EQ(reread->format, 3);
   EXPECT_EQ(reread->volume.stdErrorL0, volume_.stdError);
 }
 

@@ -18,6 +18,7 @@
 #include "absl/strings/str_cat.h"
 #include "probe_finish.h"
 #include "probe_integrator.h"
+#include "probe_relocation.h"
 #include "probe_site.h"
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
@@ -25,6 +26,7 @@
 #include "probebake/sampling/sampler.h"
 #include "probebake/sampling/warps.h"
 #include "probebake/sh/sh_basis.h"
+#include "probebake/volume/visibility_map.h"
 #include "tracer_scene.h"
 
 namespace probebake {
@@ -32,12 +34,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-// Rays per probe for the inside-geometry test (docs/job-format.md, `grid`): a probe is invalid
-// when more than backfaceFraction of them first hit a back face. 128 directions of one Sobol
-// stream resolve the fraction to 1/128, far finer than any sensible threshold.
-constexpr int kValidityRays = 128;
-// Stream id of the validity rays, outside the range of batch ids.
-constexpr uint64_t kValidityStream = ~uint64_t{0};
 // Adaptive sampling looks at the error estimate only once this many batches exist: fewer give
 // too noisy an estimate of the standard error.
 constexpr int kMinAdaptiveBatches = 8;
@@ -284,69 +280,76 @@ ProbeVolume NewVolume(const BakeJob& job, const BakeOptions& options,
     volume.autoWindowT.assign(probeCount, 0.0f);
   if (options.coefficientErrors)
     volume.radianceStdError.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
+  if (settings.visibility)
+    volume.visibility.assign(kVisibilityTexels, std::vector<float>(3 * probeCount, 0.0f));
   return volume;
 }
 
 // Where probe `probe` of the grid is traced from and its stream key: from its world position
-// alone, so that sub-grids bake their probes as the whole grid does (probe_site.h).
-struct ProbeStart {
-  Vec3d p;       // local: the site, moved off a surface it lies on (TraceOrigin)
-  uint64_t key;  // ProbeSite::key
-  int moves;     // how often it was moved off a surface
-};
-ProbeStart StartOf(const ProbeGrid& grid, const ProbeSites& sites, const TracerScene& tracer,
-                   int64_t probe) {
+// alone (moved by its relocation offset, when it has one), so that sub-grids bake their probes as
+// the whole grid does (probe_site.h, probe_relocation.h).
+Vec3d BakedPosition(const ProbeVolume& volume, int64_t probe) {
   int i, j, k;
-  grid.Coords(probe, &i, &j, &k);
-  const ProbeSite site = sites.At(grid.Position(i, j, k));
-  ProbeStart start;
-  start.p = TraceOrigin(tracer, site.local, &start.moves);
-  start.key = site.key;
-  return start;
+  volume.grid.Coords(probe, &i, &j, &k);
+  const Vec3d at = volume.grid.Position(i, j, k);
+  if (volume.offset.empty()) return at;
+  const float* o = &volume.offset[3 * probe];
+  return at + Vec3d(Vec3f(o[0], o[1], o[2]));
 }
 
-// Sets every probe's validity (inside geometry or not: kValidityRays rays, docs/job-format.md,
-// `grid`) and whether the placement bakes it (volume->active). Returns the rays traced.
+// Sets every probe's validity (inside geometry or not: probe_relocation.h), its relocation
+// offset when relocation is on, and whether the placement bakes it (volume->active). Returns the
+// rays traced.
 int64_t PlaceProbes(const BakeJob& job, const TracerScene& tracer, const ProbeSites& sites,
                     ProbeVolume* volume) {
   const BakeSettings& settings = job.settings;
   const ProbeGrid& grid = job.grid;
+  const ProbeRelocator relocator(tracer, sites, settings, grid);
+  if (relocator.Enabled()) volume->offset.assign(3 * grid.ProbeCount(), 0.0f);
   std::atomic<int64_t> placementRays{0};
   std::atomic<int64_t> onSurfaces{0};
-  tbb::parallel_for(
-      tbb::blocked_range<int64_t>(0, grid.ProbeCount(), 64),
-      [&](const tbb::blocked_range<int64_t>& range) {
-        int64_t rays = 0;
-        for (int64_t probe = range.begin(); probe != range.end(); ++probe) {
-          const ProbeStart start = StartOf(grid, sites, tracer, probe);
-          if (start.moves > 0) onSurfaces.fetch_add(1, std::memory_order_relaxed);
-          const Vec3f origin(start.p);
-          SobolSampler sampler(settings.seed, Hash(start.key, kValidityStream));
-          int backfaces = 0;
-          for (int r = 0; r < kValidityRays; ++r) {
-            sampler.StartSample(uint64_t(r));
-            const Vec3d wi = SampleUniformSphere(sampler.Get2D());
-            SurfaceHit hit;
-            ++rays;
-            if (tracer.Intersect(origin, wi, std::numeric_limits<double>::infinity(), &hit) &&
-                hit.kind == SurfaceKind::kMesh && Dot(wi, hit.ng) > 0)
-              ++backfaces;
-          }
-          const bool valid = double(backfaces) <= settings.backfaceFraction * kValidityRays;
-          volume->validity[probe] = valid ? 1.0f : 0.0f;
-          bool active = true;
-          if (grid.placement == Placement::kOutsideGeometry) active = valid;
-          if (grid.placement == Placement::kNearSurfaces)
-            active = valid && tracer.MeshWithin(start.p, grid.surfaceDistance);
-          volume->active[probe] = active ? 1 : 0;
-        }
-        placementRays.fetch_add(rays, std::memory_order_relaxed);
-      });
+  std::atomic<int64_t> moved{0};
+  std::atomic<int64_t> stuck{0};
+  tbb::parallel_for(tbb::blocked_range<int64_t>(0, grid.ProbeCount(), 64),
+                    [&](const tbb::blocked_range<int64_t>& range) {
+                      int64_t rays = 0;
+                      for (int64_t probe = range.begin(); probe != range.end(); ++probe) {
+                        const Vec3d position = BakedPosition(*volume, probe);
+                        ProbeStart start = StartAt(sites, tracer, position);
+                        if (start.moves > 0) onSurfaces.fetch_add(1, std::memory_order_relaxed);
+                        bool valid = ProbeValid(tracer, settings, start.p, start.key, &rays);
+                        if (relocator.WantsMove(start, valid)) {
+                          Vec3f offset;
+                          if (relocator.Find(position, start, valid, &offset, &rays)) {
+                            volume->offset[3 * probe] = offset.x;
+                            volume->offset[3 * probe + 1] = offset.y;
+                            volume->offset[3 * probe + 2] = offset.z;
+                            start = StartAt(sites, tracer, BakedPosition(*volume, probe));
+                            valid = true;  // the search found it valid
+                            moved.fetch_add(1, std::memory_order_relaxed);
+                          } else {
+                            stuck.fetch_add(1, std::memory_order_relaxed);
+                          }
+                        }
+                        volume->validity[probe] = valid ? 1.0f : 0.0f;
+                        bool active = true;
+                        if (grid.placement == Placement::kOutsideGeometry) active = valid;
+                        if (grid.placement == Placement::kNearSurfaces)
+                          active = valid && tracer.MeshWithin(start.p, grid.surfaceDistance);
+                        volume->active[probe] = active ? 1 : 0;
+                      }
+                      placementRays.fetch_add(rays, std::memory_order_relaxed);
+                    });
   if (const int64_t n = onSurfaces.load(); n > 0)
     Logger("bake")->info(
         "{} grid points lie on a mesh surface; each is traced from just off it, on its front "
         "side",
         n);
+  if (relocator.Enabled())
+    Logger("bake")->info(
+        "relocation: {} probes moved, {} inside or too close to geometry found no free point "
+        "within {} of the spacing",
+        moved.load(), stuck.load(), settings.relocationMaxOffset);
   return placementRays.load();
 }
 
@@ -416,12 +419,14 @@ class ProbeBaker {
         batchesPerCall_(int(std::clamp<int64_t>(
             ProbeIntegrator::kSamplesPerCall / (settings_.samplesPerProbe / maxBatches_), 1,
             ProbeIntegrator::kSamplesPerCall))),
-        sampledMayBeNonZero_(SampledMayBeNonZero(job.scene, lights_)) {}
+        sampledMayBeNonZero_(SampledMayBeNonZero(job.scene, lights_)),
+        visibilityMaxDistance_(VisibilityMaxDistance(job.grid)) {}
 
   // Bakes the probe at start.p into probe `probe` of *volume, unless `cancel` or `stop` is raised
   // before it is done.
   Outcome Bake(int64_t probe, const ProbeStart& start, ProbeVolume* volume) const {
-    ProbeEstimate estimate(ShCoeffCount(settings_.shOrder), maxBatches_, sampledMayBeNonZero_);
+    ProbeEstimate estimate(ShCoeffCount(settings_.shOrder), maxBatches_, sampledMayBeNonZero_,
+                           settings_.visibility);
     AddDeltaLights(start.p, &estimate);
     int batches = 0;
     if (!TraceRounds(start, &estimate, &batches)) return Outcome::kStopped;
@@ -489,7 +494,7 @@ class ProbeBaker {
       ProbeIntegrator::BatchWork work[ProbeIntegrator::kSamplesPerCall];
       for (int b = from; b < to; ++b)
         work[b - from] = {BatchSize(settings_.samplesPerProbe, maxBatches_, b),
-                          estimate->BatchSum(b)};
+                          estimate->BatchSum(b), estimate->BatchMoments(b), visibilityMaxDistance_};
       if (!integrator_.TraceBatches(start.p, start.key, uint32_t(from), {work, size_t(to - from)},
                                     counters_, cancel_))
         cancelled.store(true, std::memory_order_relaxed);
@@ -513,6 +518,7 @@ class ProbeBaker {
   const int maxBatches_;
   const int batchesPerCall_;
   const bool sampledMayBeNonZero_;
+  const double visibilityMaxDistance_;
 };
 
 // How BakeProbes ended: every probe baked, cancelled, or stopped by a probe whose values overflow
@@ -537,30 +543,30 @@ BakeRun BakeProbes(const BakeJob& job, const BakeOptions& options, const Traceab
            (cancel && cancel->load(std::memory_order_relaxed));
   };
   const ProbeBaker baker(job, scene, finisher, counters, cancel, &stop);
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, todo.size(), 1),
-                    [&](const tbb::blocked_range<size_t>& range) {
-                      for (size_t t = range.begin(); t != range.end(); ++t) {
-                        if (stopped()) return;
-                        const int64_t probe = todo[t];
-                        // Found again rather than kept from the placement: one point query against
-                        // thousands of rays, where keeping it would cost 24 bytes for every grid
-                        // point.
-                        const ProbeStart start = StartOf(job.grid, sites, *scene.tracer, probe);
-                        switch (baker.Bake(probe, start, volume)) {
-                          case ProbeBaker::Outcome::kDone:
-                            (*done)[probe].store(1, std::memory_order_release);
-                            reporter->ProbeDone(volume->stdError[probe]);
-                            break;
-                          case ProbeBaker::Outcome::kStopped:
-                            stop.store(true, std::memory_order_relaxed);
-                            return;
-                          case ProbeBaker::Outcome::kOverflow:
-                            overflow.Note(probe);
-                            stop.store(true, std::memory_order_relaxed);
-                            return;
-                        }
-                      }
-                    });
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, todo.size(), 1), [&](const tbb::blocked_range<size_t>& range) {
+        for (size_t t = range.begin(); t != range.end(); ++t) {
+          if (stopped()) return;
+          const int64_t probe = todo[t];
+          // Found again rather than kept from the placement: one point query against
+          // thousands of rays, where keeping it would cost 24 bytes for every grid
+          // point.
+          const ProbeStart start = StartAt(sites, *scene.tracer, BakedPosition(*volume, probe));
+          switch (baker.Bake(probe, start, volume)) {
+            case ProbeBaker::Outcome::kDone:
+              (*done)[probe].store(1, std::memory_order_release);
+              reporter->ProbeDone(volume->stdError[probe]);
+              break;
+            case ProbeBaker::Outcome::kStopped:
+              stop.store(true, std::memory_order_relaxed);
+              return;
+            case ProbeBaker::Outcome::kOverflow:
+              overflow.Note(probe);
+              stop.store(true, std::memory_order_relaxed);
+              return;
+          }
+        }
+      });
   BakeRun run;
   run.overflow = overflow.First();
   run.cancelled = stopped();

@@ -10,12 +10,22 @@
 
 namespace probebake {
 
-ProbeEstimate::ProbeEstimate(int coeffCount, int maxBatches, bool sampledMayBeNonZero)
+ProbeEstimate::ProbeEstimate(int coeffCount, int maxBatches, bool sampledMayBeNonZero,
+                             bool visibility)
     : coeffs_(coeffCount),
       sums_(size_t(maxBatches) * 3 * coeffCount, 0.0),
       counts_(maxBatches, 0),
       exact_(size_t(3) * coeffCount, 0.0),
+      moments_(visibility ? size_t(maxBatches) * kMomentsSize : 0, 0.0),
       sampledMayBeNonZero_(sampledMayBeNonZero) {}
+
+std::vector<double> ProbeEstimate::Moments(int batches) const {
+  std::vector<double> total(kMomentsSize, 0.0);
+  if (moments_.empty()) return total;
+  for (int b = 0; b < batches; ++b)
+    for (int i = 0; i < kMomentsSize; ++i) total[i] += moments_[size_t(b) * kMomentsSize + i];
+  return total;
+}
 
 void ProbeEstimate::AddExact(int order, const Vec3d& wi, const Vec3d& radiance) {
   double y[kMaxShCoeffCount];
@@ -167,6 +177,17 @@ double ProbeFinisher::Finish(const ProbeEstimate& estimate, int batches, int64_t
   volume->stdError[probe] = float(errors.irradiance);
   volume->stdErrorL0[probe] = float(errors.l0);
   volume->sampleCount[probe] = float(estimate.Samples(batches));
+  if (!volume->visibility.empty()) {
+    const std::vector<double> m = estimate.Moments(batches);
+    const double maxDistance = VisibilityMaxDistance(volume->grid);
+    for (int t = 0; t < kVisibilityTexels; ++t) {
+      const double n = m[3 * t + 2];
+      float* out = &volume->visibility[t][3 * size_t(probe)];
+      out[0] = float(n > 0 ? m[3 * t] / n : maxDistance);
+      out[1] = float(n > 0 ? m[3 * t + 1] / n : maxDistance * maxDistance);
+      out[2] = float(n);
+    }
+  }
   return autoT;
 }
 
@@ -176,11 +197,13 @@ ProbeVolume EmptyLike(const ProbeVolume& v) {
   out.shOrder = v.shOrder;
   out.active = v.active;
   out.validity = v.validity;
+  out.offset = v.offset;
   out.window = v.window;
   const size_t planeSize = v.validity.size() * 3;
   out.radiance.assign(v.radiance.size(), std::vector<float>(planeSize, 0.0f));
   out.irradiance.assign(v.irradiance.size(), std::vector<float>(planeSize, 0.0f));
   out.radianceStdError.assign(v.radianceStdError.size(), std::vector<float>(planeSize, 0.0f));
+  out.visibility.assign(v.visibility.size(), std::vector<float>(planeSize, 0.0f));
   out.autoWindowT.assign(v.autoWindowT.size(), 0.0f);
   out.stdError.assign(v.stdError.size(), 0.0f);
   out.stdErrorL0.assign(v.stdErrorL0.size(), 0.0f);
@@ -200,6 +223,12 @@ void CopyProbe(const ProbeVolume& from, int64_t probe, ProbeVolume* to) {
     for (size_t c = 0; c < to->radianceStdError.size(); ++c)
       for (int ch = 0; ch < 3; ++ch)
         to->radianceStdError[c][3 * probe + ch] = from.radianceStdError[c][3 * probe + ch];
+  if (!to->visibility.empty() && from.visibility.size() == to->visibility.size())
+    for (size_t t = 0; t < to->visibility.size(); ++t)
+      for (int ch = 0; ch < 3; ++ch)
+        to->visibility[t][3 * probe + ch] = from.visibility[t][3 * probe + ch];
+  if (!to->offset.empty() && from.offset.size() == to->offset.size())
+    for (int ch = 0; ch < 3; ++ch) to->offset[3 * probe + ch] = from.offset[3 * probe + ch];
   if (!to->autoWindowT.empty() && from.autoWindowT.size() == to->autoWindowT.size())
     to->autoWindowT[probe] = from.autoWindowT[probe];
   to->stdError[probe] = from.stdError[probe];

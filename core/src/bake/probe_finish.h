@@ -32,6 +32,7 @@
 #include "probebake/math/vec3.h"
 #include "probebake/scene/scene.h"
 #include "probebake/sh/sh_window.h"
+#include "probebake/volume/visibility_map.h"
 
 namespace probebake {
 
@@ -40,13 +41,22 @@ class ProbeEstimate {
   // sampledMayBeNonZero: false when the scene gives every sample zero by construction (no light
   // to sample, and delta lights with nothing to scatter them: no mesh of non-zero albedo, no
   // scattering medium), so that identical all-zero batches are exact rather than unknown.
-  ProbeEstimate(int coeffCount, int maxBatches, bool sampledMayBeNonZero);
+  // visibility: also keep each batch's visibility moments (BatchMoments).
+  ProbeEstimate(int coeffCount, int maxBatches, bool sampledMayBeNonZero, bool visibility = false);
 
   // The running sum of batch b: coeffCount x 3 doubles, coefficient-major RGB.
   std::span<double> BatchSum(int b) {
     return {sums_.data() + size_t(b) * 3 * coeffs_, size_t(3 * coeffs_)};
   }
   void SetBatchSamples(int b, int64_t n) { counts_[b] = n; }
+  // The visibility moments of batch b (ProbeIntegrator::BatchWork::moments); empty without
+  // visibility.
+  std::span<double> BatchMoments(int b) {
+    if (moments_.empty()) return {};
+    return {moments_.data() + size_t(b) * kMomentsSize, size_t(kMomentsSize)};
+  }
+  // The first `batches` batches' moments summed in batch order: per texel (sum d, sum d^2, rays).
+  std::vector<double> Moments(int batches) const;
   // Adds an exactly known term radiance * Y(wi) (a delta light seen from the probe).
   void AddExact(int order, const Vec3d& wi, const Vec3d& radiance);
 
@@ -69,6 +79,8 @@ class ProbeEstimate {
   std::vector<double> sums_;  // maxBatches x coeffs x 3
   std::vector<int64_t> counts_;
   std::vector<double> exact_;  // coeffs x 3
+  static constexpr int kMomentsSize = 3 * kVisibilityTexels;
+  std::vector<double> moments_;  // maxBatches x kMomentsSize, or empty
   bool sampledMayBeNonZero_;
 };
 
@@ -79,8 +91,10 @@ class ProbeFinisher {
   // for AUTO a summary of the per-probe heat windows (AutoWindowSummary).
   std::string WindowName() const;
   // Stores the estimate of the first `batches` batches as probe `probe` of `volume` (radiance,
-  // irradiance and window when requested, std_error, std_error_l0, sample_count). Returns the AUTO
-  // window's heat parameter t chosen for this probe (0: left unwindowed; 0 for other windows).
+  // irradiance and window when requested, std_error, std_error_l0, sample_count, and the
+  // visibility moments when the volume has them: per texel mean d, mean d^2 and the ray count;
+  // a texel no ray went through reads as all free, (maxDistance, maxDistance^2, 0)). Returns the
+  // AUTO window's heat parameter t chosen for this probe (0: left unwindowed; 0 for other windows).
   double Finish(const ProbeEstimate& estimate, int batches, int64_t probe,
                 ProbeVolume* volume) const;
 

@@ -16,6 +16,7 @@
 #include "probebake/sampling/spherical_fibonacci.h"
 #include "probebake/sampling/warps.h"
 #include "probebake/sh/sh_basis.h"
+#include "probebake/volume/visibility_map.h"
 #include "ray_offset.h"
 
 namespace probebake {
@@ -219,6 +220,8 @@ struct PathState {
   Vec3d pPrev, nPrev;
   bool hasNormal = false;
   double total = 0;
+  // The distance to the surface the path's first ray (from the probe) hit; +inf on a miss.
+  double firstHit = 0;
 };
 
 // Right after a restart, draw(numbers) draws from `numbers` as it would from the sampler: a
@@ -605,6 +608,7 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
       const SurfaceHit& hit = g->hit[k];
       // The vertex's light importance, written by its shading.
       const auto here = [&] { return std::span<double>(importanceHere + j * size, size); };
+      if (bounce == 1) s.firstHit = g->found[k] ? hit.t : kInf;
       bool scattered = false;
       VertexNumbers drawn;  // with a medium: the vertex's numbers, drawn once it is found
       const VertexNumbers* u = kMedium ? &drawn : &g->vertex[j];
@@ -717,6 +721,14 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
     }
     const Vec3d& radiance = g.path[j].radiance;
     if (MaxComponent(radiance) > 0) Project(order, g.wi[j], radiance / probe.pdf, sum);
+    const std::span<double> moments = work[g.batch[j]].moments;
+    if (!moments.empty()) {
+      const double d = std::min(g.path[j].firstHit, work[g.batch[j]].maxDistance);
+      double* m = &moments[3 * size_t(VisibilityTexel(g.wi[j]))];
+      m[0] += d;
+      m[1] += d * d;
+      m[2] += 1;
+    }
   }
 }
 

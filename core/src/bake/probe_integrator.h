@@ -100,10 +100,15 @@ class ProbeIntegrator {
                   std::span<double> sum, SharedCounters* shared,
                   const std::atomic<bool>* cancel) const;
 
-  // One batch of TraceBatches: its sample count and the sum its samples add to.
+  // One batch of TraceBatches: its sample count and the sum its samples add to; and, when not
+  // empty, the visibility moments its probe rays add to (probebake/volume/visibility_map.h):
+  // per texel the sum of first-hit distances (capped at maxDistance, a miss counting as
+  // maxDistance), of their squares, and the ray count, in sample order.
   struct BatchWork {
     int64_t count = 0;
     std::span<double> sum;
+    std::span<double> moments = {};
+    double maxDistance = 0;
   };
   // TraceBatch for batches firstBatch + k, k < work.size(), with work[k]'s count and sum: the
   // same sums as one TraceBatch call each. Traced together, small batches' rays from the probe

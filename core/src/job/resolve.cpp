@@ -74,6 +74,8 @@ BakeSettings ResolveSettings(const v1::BakeSettings& s) {
   // batches let an easy probe stop at 10/64 of the cap.
   r.batches = s.has_batches() ? s.batches() : (r.targetRelError > 0 ? 64 : 4);
   r.backfaceFraction = s.has_backface_fraction() ? s.backface_fraction() : 0.5;
+  r.relocationMaxOffset = s.has_relocation_max_offset() ? s.relocation_max_offset() : 0;
+  r.visibility = s.has_visibility() && s.visibility();
   return r;
 }
 
@@ -117,6 +119,8 @@ v1::BakeSettings SettingsToProto(const BakeSettings& r) {
   s.set_rr_min_depth(r.rrMinDepth);
   s.set_batches(r.batches);
   s.set_backface_fraction(r.backfaceFraction);
+  s.set_relocation_max_offset(r.relocationMaxOffset);
+  s.set_visibility(r.visibility);
   return s;
 }
 

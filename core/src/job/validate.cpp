@@ -713,6 +713,12 @@ class Validator {
       errors_.Add(p + ".backfaceFraction",
                   "must be in (0, 1] (got " + Num(s.backface_fraction()) + ")");
     }
+    if (s.has_relocation_max_offset() && std::isfinite(s.relocation_max_offset()) &&
+        !(s.relocation_max_offset() >= 0 && s.relocation_max_offset() <= 0.5)) {
+      errors_.Add(p + ".relocationMaxOffset",
+                  "must be in [0, 0.5] (a fraction of the smallest grid spacing; got " +
+                      Num(s.relocation_max_offset()) + ")");
+    }
   }
 
   void SamplesLimit(int64_t samples, const std::string& path) {

@@ -1,4 +1,5 @@
 #include "probebake/volume/irradiance_slice.h"
+#include "probebake/volume/probe_sampler.h"
 
 #include <algorithm>
 #include <cctype>
@@ -7,8 +8,6 @@
 #include <limits>
 
 #include "png_io.h"
-#include "probebake/sh/sh_basis.h"
-#include "probebake/sh/sh_convolution.h"
 #include "vdb_format.h"
 
 namespace probebake {
@@ -94,9 +93,6 @@ absl::StatusOr<SliceImage> RenderIrradianceSlice(const ProbeVolume& volume,
                                    ShortNumber(hi) + "]");
   }
   const double tc = std::clamp(t, 0.0, double(nAxis - 1));
-  const int k0 = std::min(int(std::floor(tc)), nAxis - 1);
-  const int k1 = std::min(k0 + 1, nAxis - 1);
-  const double fk = tc - k0;
 
   Vec3d normal{0, 0, 0};
   normal[axis] = 1;
@@ -109,27 +105,7 @@ absl::StatusOr<SliceImage> RenderIrradianceSlice(const ProbeVolume& volume,
     normal = n / std::sqrt(len2);
   }
 
-  // E(n) = sum_c weight_c coeff_c: the normal is fixed, so the basis and band factors fold into
-  // one weight per coefficient.
-  const int order = volume.shOrder;
-  const int coefficients = volume.CoeffCount();
-  const bool useIrradiance = !volume.irradiance.empty();
-  std::vector<double> weight(static_cast<size_t>(coefficients));
-  EvalShBasis<double>(order, normal, weight.data());
-  if (!useIrradiance) {
-    for (int l = 0; l <= order; ++l) {
-      const double factor = IrradianceBandFactor(l);
-      for (int m = -l; m <= l; ++m) weight[size_t(ShIndex(l, m))] *= factor;
-    }
-  }
-  const std::vector<std::vector<float>>& planes =
-      useIrradiance ? volume.irradiance : volume.radiance;
-
-  // Irradiance at the probes of the two layers around the plane; usable = active and valid.
   const int nu = grid.counts[ua], nv = grid.counts[va];
-  const size_t layerSize = size_t(nu) * size_t(nv);
-  std::vector<Vec3d> probeE(2 * layerSize);
-  std::vector<uint8_t> usable(2 * layerSize, 0);
   auto probeIndex = [&](int a, int b, int k) {
     int c[3];
     c[ua] = a;
@@ -137,23 +113,6 @@ absl::StatusOr<SliceImage> RenderIrradianceSlice(const ProbeVolume& volume,
     c[axis] = k;
     return grid.LinearIndex(c[0], c[1], c[2]);
   };
-  for (int layer = 0; layer < 2; ++layer) {
-    const int k = layer == 0 ? k0 : k1;
-    for (int b = 0; b < nv; ++b) {
-      for (int a = 0; a < nu; ++a) {
-        const size_t p = size_t(probeIndex(a, b, k));
-        const size_t slot = size_t(layer) * layerSize + size_t(b) * size_t(nu) + size_t(a);
-        if (!volume.active[p] || !(volume.validity[p] >= 0.5f)) continue;
-        usable[slot] = 1;
-        Vec3d e{0, 0, 0};
-        for (int c = 0; c < coefficients; ++c) {
-          const float* rgb = &planes[size_t(c)][3 * p];
-          e += Vec3d(rgb[0], rgb[1], rgb[2]) * weight[size_t(c)];
-        }
-        probeE[slot] = e;
-      }
-    }
-  }
 
   // Image size: pixelsPerProbe per probe cell, shrunk to fit maxImageSize.
   const double scale = std::min(double(options.pixelsPerProbe),
@@ -165,34 +124,24 @@ absl::StatusOr<SliceImage> RenderIrradianceSlice(const ProbeVolume& volume,
   image.irradiance.assign(3 * pixels, std::numeric_limits<float>::quiet_NaN());
   image.rgb.assign(3 * pixels, 0);
 
+  const ProbeSampler sampler(volume);
   std::vector<double> luminance;
   luminance.reserve(pixels);
   for (int py = 0; py < image.height; ++py) {
     // Continuous probe coordinates of the pixel centre; rows run top (high v) to bottom.
     const double sv =
         std::clamp(double(nv) - (py + 0.5) * double(nv) / image.height - 0.5, 0.0, double(nv - 1));
-    const int b0 = std::min(int(std::floor(sv)), nv - 1);
-    const int b1 = std::min(b0 + 1, nv - 1);
-    const double fb = sv - b0;
     for (int px = 0; px < image.width; ++px) {
       const double su =
           std::clamp((px + 0.5) * double(nu) / image.width - 0.5, 0.0, double(nu - 1));
-      const int a0 = std::min(int(std::floor(su)), nu - 1);
-      const int a1 = std::min(a0 + 1, nu - 1);
-      const double fa = su - a0;
-      Vec3d sum{0, 0, 0};
-      double total = 0;
-      for (int corner = 0; corner < 8; ++corner) {
-        const int layer = (corner >> 2) & 1;
-        const int b = (corner >> 1) & 1 ? b1 : b0;
-        const int a = corner & 1 ? a1 : a0;
-        const double w =
-            (corner & 1 ? fa : 1 - fa) * ((corner >> 1) & 1 ? fb : 1 - fb) * (layer ? fk : 1 - fk);
-        const size_t slot = size_t(layer) * layerSize + size_t(b) * size_t(nu) + size_t(a);
-        if (w == 0 || !usable[slot]) continue;
-        sum += probeE[slot] * w;
-        total += w;
-      }
+      // The reference sampler at the pixel's world point (probe_sampler.h).
+      Vec3d x;
+      x[axis] = grid.origin[axis] + tc * grid.spacing[axis];
+      x[ua] = grid.origin[ua] + su * grid.spacing[ua];
+      x[va] = grid.origin[va] + sv * grid.spacing[va];
+      const ProbeSample sample = sampler.Sample(x, normal);
+      const double total = sample.probes > 0 ? 1.0 : 0.0;
+      const Vec3d sum = sample.irradiance;
       const size_t pixel = size_t(py) * size_t(image.width) + size_t(px);
       if (total > 0) {
         const Vec3d e = sum / total;

@@ -1,5 +1,7 @@
 #include "vdb_format.h"
 
+#include "probebake/volume/visibility_map.h"
+
 #include <cmath>
 #include <cstdint>
 #include <utility>
@@ -148,6 +150,23 @@ absl::Status ValidateVolume(const ProbeVolume& volume) {
   if (volume.sampleCount.size() != probes) {
     return sizeError("volume.sampleCount", volume.sampleCount.size(), probes);
   }
+  if (!volume.offset.empty() && volume.offset.size() != 3 * probes) {
+    return sizeError("volume.offset", volume.offset.size(), 3 * probes);
+  }
+  if (!volume.filled.empty() && volume.filled.size() != probes) {
+    return sizeError("volume.filled", volume.filled.size(), probes);
+  }
+  if (!volume.visibility.empty()) {
+    if (volume.visibility.size() != size_t(kVisibilityTexels)) {
+      return sizeError("volume.visibility", volume.visibility.size(), kVisibilityTexels);
+    }
+    for (size_t t = 0; t < volume.visibility.size(); ++t) {
+      if (volume.visibility[t].size() != 3 * probes) {
+        return sizeError("volume.visibility[" + std::to_string(t) + "]",
+                         volume.visibility[t].size(), 3 * probes);
+      }
+    }
+  }
   return absl::OkStatus();
 }
 
@@ -170,6 +189,9 @@ std::string RadianceGridName(int coefficient) {
 }
 std::string IrradianceGridName(int coefficient) {
   return ShGridName("irradiance_sh_", coefficient);
+}
+std::string VisibilityGridName(int texel) {
+  return ShGridName("visibility_", texel);
 }
 
 VolumeMetadata VolumeMetadataFor(const BakeJob& job) {

@@ -30,6 +30,10 @@ inline constexpr const char* kKeyGridMin = "grid_min";
 inline constexpr const char* kKeyGridSpacing = "grid_spacing";
 inline constexpr const char* kKeyGridPlacement = "grid_placement";
 inline constexpr const char* kKeyGridSurfaceDistance = "grid_surface_distance";
+inline constexpr const char* kKeyHasOffset = "has_offset";
+inline constexpr const char* kKeyHasFilled = "has_filled";
+inline constexpr const char* kKeyVisibilitySize = "visibility_size";
+inline constexpr const char* kKeyVisibilityMaxDistance = "visibility_max_distance";
 
 // Per-grid metadata of SH grids.
 inline constexpr const char* kKeyShIndex = "sh_index";

@@ -19,6 +19,7 @@
 
 #include "absl/strings/numbers.h"
 #include "probebake/volume/vdb_io.h"
+#include "probebake/volume/visibility_map.h"
 #include "probebake/volume/volume_inspect.h"
 #include "proto_json.h"
 #include "vdb_format.h"
@@ -208,9 +209,10 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
 
   int32_t format = 0;
   PB_RETURN_IF_ERROR(meta.Get(kKeyFormat, &format));
-  if (format != kProbeVolumeFormat && format != kProbeVolumeFormat1) {
+  if (format != kProbeVolumeFormat && format != kProbeVolumeFormat2 &&
+      format != kProbeVolumeFormat1) {
     return meta.Error(kKeyFormat, std::to_string(format) + ", this reader knows " +
-                                      std::to_string(kProbeVolumeFormat1) + " and " +
+                                      std::to_string(kProbeVolumeFormat1) + " to " +
                                       std::to_string(kProbeVolumeFormat));
   }
   result.format = format;
@@ -254,6 +256,23 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
   expected.push_back({kStdErrorGridName, false});
   if (format != kProbeVolumeFormat1) expected.push_back({kStdErrorL0GridName, false});
   expected.push_back({kSampleCountGridName, false});
+  // Format 3's optional grids, announced by its metadata.
+  bool hasOffset = false, hasFilled = false;
+  int32_t visibilitySize = 0;
+  if (format >= kProbeVolumeFormat) {
+    PB_RETURN_IF_ERROR(meta.Get(kKeyHasOffset, &hasOffset));
+    PB_RETURN_IF_ERROR(meta.Get(kKeyHasFilled, &hasFilled));
+    PB_RETURN_IF_ERROR(meta.Get(kKeyVisibilitySize, &visibilitySize));
+    if (visibilitySize != 0 && visibilitySize != kVisibilityMapSize) {
+      return meta.Error(kKeyVisibilitySize, std::to_string(visibilitySize) +
+                                                ", this reader knows 0 (none) and " +
+                                                std::to_string(kVisibilityMapSize));
+    }
+  }
+  if (hasOffset) expected.push_back({kOffsetGridName, true});
+  if (hasFilled) expected.push_back({kFilledGridName, false});
+  const int visibilityTexels = visibilitySize * visibilitySize;
+  for (int t = 0; t < visibilityTexels; ++t) expected.push_back({VisibilityGridName(t), true});
   std::map<std::string, vdb::GridBase::Ptr> headers;  // metadata and transform only
   const vdb::GridPtrVecPtr allHeaders = file->readAllGridMetadata();
   for (const vdb::GridBase::Ptr& header : *allHeaders) {
@@ -468,6 +487,12 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
     PB_RETURN_IF_ERROR(readInto(kStdErrorL0GridName, floatTag, 1, &volume.stdErrorL0));
   }
   PB_RETURN_IF_ERROR(readInto(kSampleCountGridName, floatTag, 1, &volume.sampleCount));
+  if (hasOffset) PB_RETURN_IF_ERROR(readInto(kOffsetGridName, vecTag, 3, &volume.offset));
+  if (hasFilled) PB_RETURN_IF_ERROR(readInto(kFilledGridName, floatTag, 1, &volume.filled));
+  volume.visibility.resize(size_t(visibilityTexels));
+  for (int t = 0; t < visibilityTexels; ++t) {
+    PB_RETURN_IF_ERROR(readInto(VisibilityGridName(t), vecTag, 3, &volume.visibility[size_t(t)]));
+  }
   return result;
 }
 

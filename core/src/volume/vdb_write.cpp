@@ -19,6 +19,7 @@
 #include "probebake/base/log.h"
 #include "probebake/base/version.h"
 #include "probebake/volume/vdb_io.h"
+#include "probebake/volume/visibility_map.h"
 #include "vdb_format.h"
 
 namespace probebake {
@@ -166,6 +167,13 @@ vdb::MetaMap FileMetadata(const ProbeVolume& volume, const VolumeMetadata& meta,
                vdb::Vec3DMetadata(vdb::Vec3d(g.spacing.x, g.spacing.y, g.spacing.z)));
   m.insertMeta(kKeyGridPlacement, vdb::StringMetadata(PlacementName(g.placement)));
   m.insertMeta(kKeyGridSurfaceDistance, vdb::DoubleMetadata(g.surfaceDistance));
+  m.insertMeta(kKeyHasOffset, vdb::BoolMetadata(!volume.offset.empty()));
+  m.insertMeta(kKeyHasFilled, vdb::BoolMetadata(!volume.filled.empty()));
+  m.insertMeta(kKeyVisibilitySize,
+               vdb::Int32Metadata(volume.visibility.empty() ? 0 : kVisibilityMapSize));
+  m.insertMeta(
+      kKeyVisibilityMaxDistance,
+      vdb::DoubleMetadata(volume.visibility.empty() ? 0.0 : VisibilityMaxDistance(volume.grid)));
   return m;
 }
 
@@ -176,7 +184,9 @@ absl::Status WriteGrids(std::ostream& os, const std::string& path, const ProbeVo
                         ProbeVolume* releasable) {
   const int coefficients = volume.CoeffCount();
   const bool hasIrradiance = !volume.irradiance.empty();
-  const int32_t gridCount = coefficients * (hasIrradiance ? 2 : 1) + 4;
+  const int32_t gridCount = coefficients * (hasIrradiance ? 2 : 1) + 4 +
+                            (volume.offset.empty() ? 0 : 1) + (volume.filled.empty() ? 0 : 1) +
+                            int32_t(volume.visibility.size());
   const vdb::math::Transform::Ptr transform = ProbeTransform(volume.grid);
 
   StreamingArchive archive;
@@ -217,6 +227,34 @@ absl::Status WriteGrids(std::ostream& os, const std::string& path, const ProbeVo
     if (s.releasable != nullptr) release(s.releasable);
     archive.WriteGrid(os, grid);
     PB_RETURN_IF_ERROR(check(s.name));
+  }
+  // Format 3's optional grids.
+  auto writeVec3 = [&](const std::string& name, const std::vector<float>& plane,
+                       std::vector<float>* releasablePlane) -> absl::Status {
+    vdb::Vec3SGrid::Ptr grid =
+        BuildGrid<vdb::Vec3SGrid>(volume, name, transform, [&plane](size_t p) {
+          return vdb::Vec3s(plane[3 * p], plane[3 * p + 1], plane[3 * p + 2]);
+        });
+    grid->setVectorType(vdb::VEC_INVARIANT);
+    if (releasablePlane != nullptr) release(releasablePlane);
+    archive.WriteGrid(os, grid);
+    return check(name);
+  };
+  if (!volume.offset.empty()) {
+    // An offset is a world-space displacement: it does not scale with the voxel size.
+    PB_RETURN_IF_ERROR(
+        writeVec3(kOffsetGridName, volume.offset, releasable ? &releasable->offset : nullptr));
+  }
+  if (!volume.filled.empty()) {
+    vdb::GridBase::ConstPtr grid =
+        BuildScalarGrid(volume, kFilledGridName, transform, volume.filled);
+    if (releasable != nullptr) release(&releasable->filled);
+    archive.WriteGrid(os, grid);
+    PB_RETURN_IF_ERROR(check(kFilledGridName));
+  }
+  for (size_t t = 0; t < volume.visibility.size(); ++t) {
+    PB_RETURN_IF_ERROR(writeVec3(VisibilityGridName(int(t)), volume.visibility[t],
+                                 releasable ? &releasable->visibility[t] : nullptr));
   }
   return absl::OkStatus();
 }
@@ -270,11 +308,11 @@ absl::Status WriteProbeVolume(const std::string& path, ProbeVolume&& volume,
   std::vector<float>().swap(volume.autoWindowT);
   absl::Status status = WriteImpl(path, volume, meta, &volume);
   // Whatever happened, the planes are the caller's no more.
-  for (auto* planes : {&volume.radiance, &volume.irradiance}) {
+  for (auto* planes : {&volume.radiance, &volume.irradiance, &volume.visibility}) {
     std::vector<std::vector<float>>().swap(*planes);
   }
-  for (auto* values :
-       {&volume.validity, &volume.stdError, &volume.stdErrorL0, &volume.sampleCount}) {
+  for (auto* values : {&volume.validity, &volume.stdError, &volume.stdErrorL0, &volume.sampleCount,
+                       &volume.offset, &volume.filled}) {
     std::vector<float>().swap(*values);
   }
   return status;

@@ -43,6 +43,9 @@ std::vector<std::pair<std::string, std::string>> Invariants(const ProbeVolumeFil
       {"probebake_format", std::to_string(f.format)},
       {"sh_order", std::to_string(v.shOrder)},
       {"has_irradiance", v.irradiance.empty() ? "false" : "true"},
+      {"has_offset", v.offset.empty() ? "false" : "true"},
+      {"has_filled", v.filled.empty() ? "false" : "true"},
+      {"visibility_size", std::to_string(v.visibility.size())},
       {"sh_window", autoWindow ? "AUTO" : v.window},
       {"grid_placement", std::to_string(int(v.grid.placement))},
       {"grid_surface_distance", Exact(v.grid.surfaceDistance)},
@@ -130,6 +133,9 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
   out.radiance.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
   if (!first.irradiance.empty())
     out.irradiance.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
+  if (!first.offset.empty()) out.offset.assign(3 * probeCount, 0.0f);
+  if (!first.filled.empty()) out.filled.assign(probeCount, 0.0f);
+  out.visibility.assign(first.visibility.size(), std::vector<float>(3 * probeCount, 0.0f));
 
   const bool autoWindow = first.window.rfind(kAutoPrefix, 0) == 0;
   long long windowed = 0, autoProbes = 0;
@@ -154,6 +160,12 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
       put(out.stdError[q], v.stdError[p]);
       put(out.stdErrorL0[q], v.stdErrorL0[p]);
       put(out.sampleCount[q], v.sampleCount[p]);
+      if (!out.filled.empty()) put(out.filled[q], v.filled[p]);
+      for (int ch = 0; ch < 3; ++ch) {
+        if (!out.offset.empty()) put(out.offset[3 * q + ch], v.offset[3 * p + ch]);
+        for (size_t t = 0; t < out.visibility.size(); ++t)
+          put(out.visibility[t][3 * q + ch], v.visibility[t][3 * p + ch]);
+      }
       for (int c = 0; c < coeffs; ++c) {
         for (int ch = 0; ch < 3; ++ch) {
           put(out.radiance[c][3 * q + ch], v.radiance[c][3 * p + ch]);

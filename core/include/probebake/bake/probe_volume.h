@@ -38,7 +38,19 @@ struct ProbeVolume {
   // Per probe, with the AUTO window only: the heat window's t chosen for the probe's irradiance
   // (0: unwindowed). Summarised in `window`; not written as a grid.
   std::vector<float> autoWindowT;
-  std::vector<float> validity;  // per probe: 1 valid, 0 inside geometry
+  // Per probe: 1 valid, 0 inside geometry (with relocation: inside and could not be moved).
+  std::vector<float> validity;
+  // With relocation (BakeSettings::relocationMaxOffset > 0), else empty: per probe 3 floats, the
+  // world-space offset (x, y, z) from the grid point to where the probe was baked; 0 for a probe
+  // that was not moved.
+  std::vector<float> offset;
+  // With BakeSettings::visibility, else empty: kVisibilityTexels planes, plane t holding per probe
+  // 3 floats (mean distance, mean squared distance, ray count) of the probe's first hits through
+  // octahedral texel t (probebake/volume/visibility_map.h).
+  std::vector<std::vector<float>> visibility;
+  // With dilation, else empty: per probe 1 when its radiance was filled from its neighbours
+  // (it could not be baked where it is: validity 0), 0 when measured.
+  std::vector<float> filled;
   // Per probe, both relative standard errors of luminance estimated from the batch spread
   // (core/src/bake/probe_finish.h, docs/volume-format.md): of the irradiance reconstructed from
   // all coefficients, RMS over the sphere of normals relative to the RMS irradiance; and of the

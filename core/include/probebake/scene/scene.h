@@ -162,6 +162,9 @@ struct BakeSettings {
   int rrMinDepth = 3;
   int batches = 4;
   double backfaceFraction = 0.5;
+  // Fraction of the smallest grid spacing a probe may be moved by (0: no relocation).
+  double relocationMaxOffset = 0;
+  bool visibility = false;  // gather visibility moments
 };
 
 // A job ready to bake.

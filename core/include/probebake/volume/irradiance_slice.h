@@ -7,13 +7,13 @@
 // `pixelsPerProbe` pixels, so the picture spans [min - spacing/2, max + spacing/2] on both axes;
 // beyond the outermost probes the field is held constant (clamped interpolation).
 //
-// Per pixel: the world point's 8 surrounding probes are blended trilinearly, skipping inactive
-// probes and invalid ones (validity < 0.5) and renormalising the remaining weights; with no valid
-// neighbour the pixel shows a grey checker (no data). Irradiance at the normal n is
-// E(n) = sum_i E_i Y_i(n), with E_i the irradiance SH when the volume has them, else radiance SH
-// times the band factor A_l (docs/spherical-harmonics.md). E is linear in the coefficients, so it
-// is evaluated at the probes and the probe values are blended: the same as blending coefficients,
-// up to float rounding.
+// Per pixel: the irradiance the reference sampler (probe_sampler.h, default options) reads at the
+// pixel's world point for the normal: the 8 surrounding probes with DDGI-style weights (trilinear,
+// backface, visibility when the volume has moments, relocation offsets applied), inactive and
+// invalid probes (validity < 0.5) skipped; with no usable neighbour the pixel shows a grey
+// checker (no data). Irradiance at the normal n is E(n) = sum_i E_i Y_i(n), with E_i the
+// irradiance SH when the volume has them, else radiance SH times the band factor A_l
+// (docs/spherical-harmonics.md).
 //
 // Tone mapping: negative values (SH ringing) clip to 0; an exposure maps the given percentile of
 // pixel luminance (Rec.709 weights, over data pixels) to 1; values above 1 clip; then the sRGB

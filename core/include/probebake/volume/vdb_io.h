@@ -70,7 +70,8 @@ namespace probebake {
 
 // The format written (docs/volume-format.md, "Versions and migration notes"), and the older one
 // ReadProbeVolume still reads.
-inline constexpr int kProbeVolumeFormat = 2;
+inline constexpr int kProbeVolumeFormat = 3;
+inline constexpr int kProbeVolumeFormat2 = 2;
 inline constexpr int kProbeVolumeFormat1 = 1;
 // Largest SH order whose coefficient indices fit the two-digit grid names.
 inline constexpr int kMaxVolumeShOrder = 9;
@@ -79,6 +80,12 @@ inline constexpr const char* kValidityGridName = "validity";
 inline constexpr const char* kStdErrorGridName = "std_error";
 inline constexpr const char* kStdErrorL0GridName = "std_error_l0";
 inline constexpr const char* kSampleCountGridName = "sample_count";
+// Format 3, optional: relocation offsets (has_offset), dilation flags (has_filled) and the
+// visibility moments (visibility_size > 0: visibility_00 ... one grid per octahedral texel).
+inline constexpr const char* kOffsetGridName = "offset";
+inline constexpr const char* kFilledGridName = "filled";
+// "visibility_07" for texel 7; texel in [0, 99].
+std::string VisibilityGridName(int texel);
 
 // "radiance_sh_07" for coefficient 7; coefficient in [0, 99].
 std::string RadianceGridName(int coefficient);
@@ -138,7 +145,7 @@ struct ProbeVolumeFile {
 // (NOT_FOUND when the file does not exist).
 // Also reads format 1 (no std_error_l0 grid; its std_error held the L0 figure): that grid goes to
 // ProbeVolume::stdErrorL0, and stdError, which format 1 did not record, is +inf (unknown) at
-// every active probe. Other formats are refused.
+// every active probe. Format 2 is format 3 without its optional grids. Other formats are refused.
 absl::StatusOr<ProbeVolumeFile> ReadProbeVolume(const std::string& path);
 
 }  // namespace probebake

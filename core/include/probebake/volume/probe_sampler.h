@@ -1,0 +1,67 @@
+// The reference sampler of a probe volume: the lighting at any point and surface normal from the
+// 8 probes around it, weighted as DDGI does (Majercik et al. 2019, "Dynamic Diffuse Global
+// Illumination with Ray-Traced Irradiance Fields"; McGuire et al. 2017, light-field probes).
+// Engines that sample the volume themselves should match it.
+//
+// For a point x with unit normal n, in scene coordinates:
+//   - the cell of the grid holding x (clamped to the grid) gives 8 probes; each active probe
+//     that holds light (validity >= 0.5, or filled by dilation) takes
+//       w = trilinear(x) * backface * visibility,
+//     - trilinear: x's trilinear weights over the cell's grid points (offsets do not move them);
+//     - backface: ((dot(dir to probe, n) + 1) / 2)^2 + 0.2, dir from x to the probe where it was
+//       baked (grid point + offset): probes behind the surface count less, never nothing;
+//     - visibility, with the volume's moments (mean distance mu and mean square m2 in the
+//       direction from the probe to a point y at distance d, probebake/volume/visibility_map.h):
+//       V(y) = 1 when d <= mu, else Chebyshev's bound p = var / (var + (d - mu)^2),
+//       var = |m2 - mu^2|, cubed (DDGI sharpens it so). It is taken at two points and the smaller
+//       kept: xb = x + n * normalBias * s (s the grid's smallest spacing; DDGI's normal bias, so
+//       that a surface does not ask a probe about its own plane, where the texel's mean depth
+//       cannot tell its side), and x itself, so that a bias that crosses a thin wall (a surface
+//       facing the wall from closer than the bias) cannot make the probes beyond the wall
+//       visible. Then weights below 0.2 are crushed, w -> w^3 / 0.2^2, after a floor of 1e-6
+//       so that a point hidden from all 8 probes still gets their blend. The cell is chosen at
+//       x, not xb, for the same reason: a bias through a wall would pick the cell beyond it;
+//   - the blend is normalised by the weights' sum.
+// Irradiance is E(n) = sum_i E_i Y_i(n), E_i the blended irradiance SH when the volume has them,
+// else the blended radiance SH times the clamped cosine's band factors; the blended radiance SH
+// are returned too.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "probebake/bake/probe_volume.h"
+#include "probebake/math/vec3.h"
+
+namespace probebake {
+
+struct ProbeSamplerOptions {
+  double normalBias = 0.05; // fraction of the smallest spacing, >= 0
+  bool visibility = true;   // Chebyshev weights (when the volume has moments)
+  bool backfaceWeight = true;
+};
+
+struct ProbeSample {
+  Vec3d irradiance;               // E(n), RGB
+  std::vector<Vec3d> radianceSh;  // blended radiance SH, (L+1)^2 RGB coefficients
+  int probes = 0;                 // probes that took part (0: no light known here, all zero)
+};
+
+class ProbeSampler {
+ public:
+  // `volume` must outlive the sampler and be consistent (as ReadProbeVolume returns it).
+  explicit ProbeSampler(const ProbeVolume& volume, ProbeSamplerOptions options = {});
+  // position: scene coordinates (finite); normal: non-zero (normalised here).
+  ProbeSample Sample(const Vec3d& position, const Vec3d& normal) const;
+
+ private:
+  // The visibility of x from probe `probe` baked at probePos: DDGI's cubed Chebyshev bound.
+  double Chebyshev(int64_t probe, const Vec3d& probePos, const Vec3d& x) const;
+
+  const ProbeVolume& volume_;
+  ProbeSamplerOptions options_;
+  double bias_;                     // scene units
+  std::vector<double> bandFactor_;  // per coefficient: A_l, or 1 with irradiance SH
+};
+
+}  // namespace probebake

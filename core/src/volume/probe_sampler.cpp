@@ -1,0 +1,131 @@
+#include "probebake/volume/probe_sampler.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+
+#include "probebake/sh/sh_basis.h"
+#include "probebake/sh/sh_convolution.h"
+#include "probebake/volume/visibility_map.h"
+
+namespace probebake {
+namespace {
+
+// DDGI's crushing: weights below kCrush fall toward 0 as w^3 / kCrush^2. DDGI also floors
+// weights at 1e-6, which makes a point hidden from every probe the plain blend of all 8: the
+// whole leak again, for the points next to a thin wall whose probes are all uncertain. Here the
+// floor is kMinWeight, far below any weight Chebyshev gives a probe that sees the point, so the
+// probes least hidden still win.
+constexpr double kCrush = 0.2;
+constexpr double kMinWeight = 1e-30;
+
+}  // namespace
+
+ProbeSampler::ProbeSampler(const ProbeVolume& volume, ProbeSamplerOptions options)
+    : volume_(volume), options_(options) {
+  const Vec3d& s = volume.grid.spacing;
+  bias_ = options.normalBias * std::min({s.x, s.y, s.z});
+  bandFactor_.assign(size_t(volume.CoeffCount()), 1.0);
+  if (volume.irradiance.empty()) {
+    for (int l = 0; l <= volume.shOrder; ++l)
+      for (int m = -l; m <= l; ++m) bandFactor_[size_t(ShIndex(l, m))] = IrradianceBandFactor(l);
+  }
+}
+
+double ProbeSampler::Chebyshev(int64_t probe, const Vec3d& probePos, const Vec3d& x) const {
+  const Vec3d fromProbe = x - probePos;
+  const double d = Length(fromProbe);
+  if (!(d > 0)) return 1;
+  // The texel holding the direction, unfiltered. (Bilinear filtering between texel centres, as
+  // DDGI samples its depth maps, leaked more through the thin wall of the leak test: a texel's
+  // neighbours see the wall at grazing angles, farther.)
+  const float* m = &volume_.visibility[size_t(VisibilityTexel(fromProbe / d))][3 * size_t(probe)];
+  const double mean = m[0], meanSq = m[1];
+  if (d <= mean) return 1;
+  const double variance = std::abs(meanSq - mean * mean);
+  const double excess = d - mean;
+  const double p = variance / (variance + excess * excess);
+  return p * p * p;
+}
+
+ProbeSample ProbeSampler::Sample(const Vec3d& position, const Vec3d& normal) const {
+  const ProbeGrid& grid = volume_.grid;
+  const int coeffs = volume_.CoeffCount();
+  const Vec3d n = Normalize(normal);
+  const Vec3d biased = position + n * bias_;
+
+  int base[3];
+  double alpha[3];
+  for (int a = 0; a < 3; ++a) {
+    const int count = grid.counts[a];
+    const double f =
+        std::clamp((position[a] - grid.origin[a]) / grid.spacing[a], 0.0, double(count - 1));
+    base[a] = std::min(int(std::floor(f)), std::max(count - 2, 0));
+    alpha[a] = count > 1 ? f - base[a] : 0.0;
+  }
+
+  ProbeSample out;
+  out.radianceSh.assign(size_t(coeffs), Vec3d{0, 0, 0});
+  std::vector<Vec3d> blended(size_t(coeffs), Vec3d{0, 0, 0});
+  double total = 0;
+  const bool visibility = options_.visibility && !volume_.visibility.empty();
+  for (int corner = 0; corner < 8; ++corner) {
+    int c[3];
+    double trilinear = 1;
+    for (int a = 0; a < 3; ++a) {
+      const int bit = (corner >> a) & 1;
+      c[a] = std::min(base[a] + bit, grid.counts[a] - 1);
+      trilinear *= bit ? alpha[a] : 1 - alpha[a];
+    }
+    if (trilinear <= 0) continue;
+    const int64_t p = grid.LinearIndex(c[0], c[1], c[2]);
+    const bool filled = !volume_.filled.empty() && volume_.filled[size_t(p)] > 0.5f;
+    if (!volume_.active[size_t(p)] || !(volume_.validity[size_t(p)] >= 0.5f || filled)) continue;
+    Vec3d probePos = grid.Position(c[0], c[1], c[2]);
+    if (!volume_.offset.empty()) {
+      const float* o = &volume_.offset[3 * size_t(p)];
+      probePos += Vec3d(o[0], o[1], o[2]);
+    }
+    double w = 1;
+    if (options_.backfaceWeight) {
+      const Vec3d toProbe = probePos - position;
+      const double len = Length(toProbe);
+      const double cosine = len > 0 ? Dot(toProbe / len, n) : 1.0;
+      const double h = (cosine + 1) / 2;
+      w *= h * h + 0.2;
+    }
+    if (visibility) {
+      w *= std::min(Chebyshev(p, probePos, biased), Chebyshev(p, probePos, position));
+      w = std::max(w, kMinWeight);
+      if (w < kCrush) w *= w * w / (kCrush * kCrush);
+    }
+    w *= trilinear;
+    if (getenv("SAMPLER_DEBUG"))
+      std::fprintf(stderr, "  probe (%g %g %g) tri %g chebB %g chebP %g w %g E0 %g\n", probePos.x,
+                   probePos.y, probePos.z, trilinear,
+                   visibility ? Chebyshev(p, probePos, biased) : -1,
+                   visibility ? Chebyshev(p, probePos, position) : -1, w,
+                   volume_.radiance[0][3 * size_t(p)]);
+    total += w;
+    ++out.probes;
+    for (int i = 0; i < coeffs; ++i) {
+      const float* r = &volume_.radiance[size_t(i)][3 * size_t(p)];
+      out.radianceSh[size_t(i)] += Vec3d(r[0], r[1], r[2]) * w;
+      const float* e =
+          volume_.irradiance.empty() ? r : &volume_.irradiance[size_t(i)][3 * size_t(p)];
+      blended[size_t(i)] += Vec3d(e[0], e[1], e[2]) * (w * bandFactor_[size_t(i)]);
+    }
+  }
+  out.irradiance = {0, 0, 0};
+  if (total <= 0) return out;
+  std::vector<double> y(static_cast<size_t>(coeffs));
+  EvalShBasis<double>(volume_.shOrder, n, y.data());
+  for (int i = 0; i < coeffs; ++i) {
+    out.radianceSh[size_t(i)] = out.radianceSh[size_t(i)] / total;
+    out.irradiance += blended[size_t(i)] * (y[size_t(i)] / total);
+  }
+  return out;
+}
+
+}  // namespace probebake
