@@ -220,9 +220,10 @@ TEST_F(EngineExportTest, UnityShadeSh9OfTheExportMatchesTheCore) {
     const Vec3d unityPosition{q.x, q.z, q.y};  // Unity (x, y, z) = probebake (x, z, y)
     for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(position[ch], unityPosition[ch], 1e-6);
     const auto& list = probe.fields().at("sh").list_value();
-    ASSERT_EQ(list.values_size(), 9);
-    std::array<Vec3d, 9> sh;
-    for (int i = 0; i < 9; ++i) sh[i] = ToVec3(list.values(i));
+    ASSERT_EQ(list.values_size(), 27);
+    std::array<Vec3d, 9> sh;  // sh[9 * channel + i] is SphericalHarmonicsL2[channel, i]
+    for (int ch = 0; ch < 3; ++ch)
+      for (int i = 0; i < 9; ++i) sh[i][ch] = list.values(9 * ch + i).number_value();
     const std::array<Vec3d, 9> radiance = Radiance(volume_, usable_[p]);
     for (const Vec3d& n : normals) {
       const Vec3d core = IrradianceAtRgb(2, radiance, n);

@@ -62,8 +62,9 @@ std::string EngineExportJson(std::span<const EngineProbe> probes, EngineFormat f
         R"js("sh_convention":"THREE.SphericalHarmonics3 radiance coefficients (LightProbe.sh)",)js";
   } else {
     s += R"js("frame":"Unity Y-up left-handed: (x, y, z) = probebake (x, z, y)",)js";
-    s += R"js("sh_convention":"UnityEngine.Rendering.SphericalHarmonicsL2 [rgb, 9]: radiance )js"
-         R"js(coefficients, ShadeSH9 gives irradiance / pi",)js";
+    s +=
+        R"js("sh_convention":"UnityEngine.Rendering.SphericalHarmonicsL2: sh[9 * rgb + i] = )js"
+        R"js(SphericalHarmonicsL2[rgb, i], radiance coefficients, ShadeSH9 gives irradiance / pi",)js";
   }
   s += "\"probes\":[";
   bool first = true;
@@ -74,10 +75,18 @@ std::string EngineExportJson(std::span<const EngineProbe> probes, EngineFormat f
     s += "\n{\"position\":";
     AppendVec(&s, axes * probe.position);
     s += ",\"sh\":[";
-    const std::array<Vec3d, 9> sh = three ? ThreeJsSh(probe.radiance) : UnitySh(probe.radiance);
-    for (int c = 0; c < 9; ++c) {
-      if (c) s += ",";
-      AppendVec(&s, sh[c]);
+    if (three) {
+      const std::array<Vec3d, 9> sh = ThreeJsSh(probe.radiance);
+      for (int c = 0; c < 9; ++c) {
+        if (c) s += ",";
+        AppendVec(&s, sh[c]);
+      }
+    } else {
+      // Flat, channel-major: Unity's JsonUtility reads no nested arrays.
+      const std::array<Vec3d, 9> sh = UnitySh(probe.radiance);
+      for (int ch = 0; ch < 3; ++ch)
+        for (int c = 0; c < 9; ++c)
+          absl::StrAppendFormat(&s, "%s%.9g", ch || c ? "," : "", sh[c][ch]);
     }
     s += "]}";
   }

@@ -8,9 +8,11 @@
 //   Condon-Shortley sign, i.e. coefficients 1, 3, 5 and 7 (m = +-1) negated, after rotating the
 //   function into three's frame. three's getIrradianceAt(n) then gives the irradiance E(n) (the
 //   clamped-cosine band factors folded in); its shaders multiply by albedo / pi.
-// Unity (kUnity): {"convention": ..., "probes": [{"position": [x, y, z], "sh": [[r, g, b] x 9]}]}
+// Unity (kUnity): {"frame": ..., "sh_convention": ..., "probes": [{"position": [x, y, z],
+//   "sh": [27 numbers]}, ...]}, sh[9 * channel + i] = SphericalHarmonicsL2[channel, i] (flat:
+//   Unity's JsonUtility reads no nested arrays).
 //   Frame: Unity (x, y, z) = probebake (x, z, y) (sh_unity.h: up stays up, a reflection from
-//   right- to left-handed). "sh" is SphericalHarmonicsL2's [rgb, 9] coefficients: radiance
+//   right- to left-handed). "sh" holds SphericalHarmonicsL2's coefficients: radiance
 //   coefficients of sh_basis.h (Condon-Shortley signs, which Unity's ConvertSHConstants and
 //   ShadeSH9 assume), so ShadeSH9(n_unity) = E(n) / pi.
 #pragma once
