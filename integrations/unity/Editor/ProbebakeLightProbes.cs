@@ -68,10 +68,13 @@ public static class ProbebakeLightProbes
             coefficients[positions[p]] = sh;
         }
 
-        GameObject go = GameObject.Find(GroupName) ?? new GameObject(GroupName);
+        // Explicit null tests: Unity objects compare equal to null when destroyed, `??` does not see it.
+        GameObject go = GameObject.Find(GroupName);
+        if (go == null) go = new GameObject(GroupName);
         go.transform.SetPositionAndRotation(Vector3.zero, Quaternion.identity);
         go.transform.localScale = Vector3.one;
-        LightProbeGroup group = go.GetComponent<LightProbeGroup>() ?? go.AddComponent<LightProbeGroup>();
+        LightProbeGroup group = go.GetComponent<LightProbeGroup>();
+        if (group == null) group = go.AddComponent<LightProbeGroup>();
         group.probePositions = positions;
 
         if (!Lightmapping.Bake())
