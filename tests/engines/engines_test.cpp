@@ -120,7 +120,8 @@ TEST_F(EngineExportTest, ThreeJsGetIrradianceAtUnderNodeMatchesTheCore) {
   const std::string threeModule =
       std::string(PROBEBAKE_WEB_DIR) + "/node_modules/three/build/three.module.js";
   ASSERT_TRUE(std::ifstream(threeModule).good())
-      << threeModule << " is missing: build the probebake_web_modules target (npm ci)";
+      << threeModule
+      << " is missing: configure with -DPROBEBAKE_VIEWER=ON (npm ci of web/package-lock.json)";
   const google::protobuf::Struct exported = Export("threejs");
   const auto& probes = exported.fields().at("probes").list_value();
   ASSERT_EQ(probes.values_size(), static_cast<int>(usable_.size()));
