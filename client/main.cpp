@@ -5,7 +5,7 @@
 //   probebake plan JOB.json --shards N [--json]
 //   probebake merge PART.vdb... -o OUT.vdb
 //   probebake inspect OUT.vdb [--json] [--slice AXIS=VALUE -o PNG]
-//   probebake export OUT.vdb --format threejs|unity -o FILE.json
+//   probebake export OUT.vdb --format threejs|unity|textures -o FILE.json
 //   probebake view OUT.vdb [--scene JOB.json] [--exposure X] -o view.html
 //   probebake submit JOB.json [--wait] [-o OUT.vdb] [--skip-cache] [--request-id ID]
 //   probebake watch NAME | status NAME | fetch NAME -o OUT.vdb | cancel NAME | delete NAME | list
@@ -662,7 +662,7 @@ int Main(int argc, char** argv) {
   CLI::App* exportCmd =
       app.add_subcommand("export", "Write a volume's probes for an engine (docs/engines.md)");
   exportCmd->add_option("volume", path, "Probe volume (.vdb)")->required();
-  exportCmd->add_option("--format", format, "threejs or unity")->required();
+  exportCmd->add_option("--format", format, "threejs, unity or textures")->required();
   exportCmd->add_option("-o,--output", out, "File to write (.json)")->required();
   CLI::App* view = app.add_subcommand(
       "view", "Write a self-contained HTML page showing the probes (and the scene) in 3D");

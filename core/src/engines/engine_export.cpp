@@ -9,6 +9,7 @@
 #include "absl/strings/str_format.h"
 #include "probebake/base/atomic_file.h"
 #include "probebake/base/check.h"
+#include "probebake/engines/probe_textures.h"
 #include "probebake/sh/sh_rotation.h"
 #include "probebake/sh/sh_unity.h"
 
@@ -33,8 +34,9 @@ void AppendVec(std::string* s, const Vec3d& v) {
 absl::StatusOr<EngineFormat> ParseEngineFormat(const std::string& name) {
   if (name == "threejs") return EngineFormat::kThreeJs;
   if (name == "unity") return EngineFormat::kUnity;
+  if (name == "textures") return EngineFormat::kTextures;
   return absl::InvalidArgumentError(
-      absl::StrCat("--format: unknown format '", name, "' (threejs, unity)"));
+      absl::StrCat("--format: unknown format '", name, "' (threejs, unity, textures)"));
 }
 
 Mat3d ThreeJsFromProbebakeAxes() {
@@ -53,6 +55,7 @@ std::array<Vec3d, 9> UnitySh(std::span<const Vec3d, 9> radiance) {
 }
 
 std::string EngineExportJson(std::span<const EngineProbe> probes, EngineFormat format) {
+  PB_CHECK(format != EngineFormat::kTextures);
   const bool three = format == EngineFormat::kThreeJs;
   const Mat3d axes = three ? ThreeJsFromProbebakeAxes() : UnityFromProbebakeAxes();
   std::string s = "{";
@@ -111,6 +114,7 @@ absl::Status WriteTextFileAtomically(const std::string& path, const std::string&
 
 absl::Status WriteEngineExport(const ProbeVolume& volume, EngineFormat format,
                                const std::string& path) {
+  if (format == EngineFormat::kTextures) return WriteProbeTextures(volume, path);
   absl::StatusOr<std::vector<EngineProbe>> probes = EngineProbes(volume);
   if (!probes.ok()) return probes.status();
   return WriteTextFileAtomically(path, EngineExportJson(*probes, format));

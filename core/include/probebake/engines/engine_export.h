@@ -27,9 +27,11 @@
 
 namespace probebake {
 
-enum class EngineFormat { kThreeJs, kUnity };
+// kTextures: 3D textures for shaders, probe_textures.h.
+enum class EngineFormat { kThreeJs, kUnity, kTextures };
 
-// "threejs" or "unity". INVALID_ARGUMENT "--format: unknown format '<s>' (threejs, unity)".
+// "threejs", "unity" or "textures". INVALID_ARGUMENT
+// "--format: unknown format '<s>' (threejs, unity, textures)".
 absl::StatusOr<EngineFormat> ParseEngineFormat(const std::string& name);
 
 // Direction maps: n_engine = M n_probebake.
@@ -41,14 +43,16 @@ std::array<Vec3d, 9> ThreeJsSh(std::span<const Vec3d, 9> radiance);
 // (coefficient i of channel c is sh[c, i]).
 std::array<Vec3d, 9> UnitySh(std::span<const Vec3d, 9> radiance);
 
-// The export file's text for `probes` (those with usable == false are left out). Numbers are
+// The export file's text for `probes` (those with usable == false are left out); kThreeJs or
+// kUnity (checked). Numbers are
 // printed with 9 significant digits (floats round-trip).
 std::string EngineExportJson(std::span<const EngineProbe> probes, EngineFormat format);
 
 // Writes `text` to `path` atomically (base/atomic_file.h). Errors name the path.
 absl::Status WriteTextFileAtomically(const std::string& path, const std::string& text);
 
-// Writes the export of `volume` to `path` atomically. Errors name the volume or the path.
+// Writes the export of `volume` to `path` atomically (kTextures: also the binary beside it). Errors
+// name the volume or the path.
 absl::Status WriteEngineExport(const ProbeVolume& volume, EngineFormat format,
                                const std::string& path);
 
