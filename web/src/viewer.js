@@ -4,25 +4,32 @@
 // at build time (web/CMakeLists.txt); everything runs from the one HTML file.
 import * as THREE from 'three';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import probesGlsl from '../../integrations/shaders/probebake_probes.glsl';
 
 const data = JSON.parse(document.getElementById('probebake-data').textContent);
 const [nx, ny, nz] = data.grid.counts;
 
-// Probe texture: texel (10 i + c, j, k) holds SH coefficient c (three's basis and frame, RGB)
-// for c < 9, and (usable ? 1 : 0) in texel 10 i + 9. Inactive probes stay 0 (not usable).
-const texels = new Float32Array(nx * 10 * ny * nz * 4);
-for (const p of data.probes) {
-  const [i, j, k] = p.ijk;
-  const base = ((k * ny + j) * nx * 10 + i * 10) * 4;
-  for (let c = 0; c < 9; c++) texels.set([...p.sh[c], 0], base + 4 * c);
-  texels[base + 36] = p.validity >= 0.5 ? 1 : 0;
+// The probes as the textures `probebake export --format textures` writes (inlined, base64),
+// sampled by integrations/shaders/probebake_probes.glsl: the include engines use.
+const header = data.textures;
+const bin = Uint8Array.from(atob(data.texturesBin), (ch) => ch.charCodeAt(0));
+const textureUniforms = {
+  pbGridOrigin: { value: new THREE.Vector3(...header.origin) },
+  pbGridSpacing: { value: new THREE.Vector3(...header.spacing) },
+  pbGridCounts: { value: new THREE.Vector3(nx, ny, nz) },
+  pbL2Scale: { value: header.l2Scale },
+};
+for (const t of header.textures) {
+  const half = t.format === 'RGBA16F';
+  const texels = half ? new Uint16Array(bin.buffer, t.offset, t.bytes / 2) : new Uint8Array(bin.buffer, t.offset, t.bytes);
+  const texture = new THREE.Data3DTexture(texels, nx, ny, nz);
+  texture.format = THREE.RGBAFormat;
+  texture.type = half ? THREE.HalfFloatType : THREE.UnsignedByteType;
+  texture.minFilter = texture.magFilter = THREE.NearestFilter;
+  texture.unpackAlignment = 1;
+  texture.needsUpdate = true;
+  textureUniforms['pb' + t.name] = { value: texture };  // the include's uniform names
 }
-const probeTexture = new THREE.Data3DTexture(texels, nx * 10, ny, nz);
-probeTexture.format = THREE.RGBAFormat;
-probeTexture.type = THREE.FloatType;
-probeTexture.minFilter = probeTexture.magFilter = THREE.NearestFilter;
-probeTexture.unpackAlignment = 1;
-probeTexture.needsUpdate = true;
 
 // three.js's SphericalHarmonics3.getIrradianceAt, in GLSL: E(n) from radiance coefficients.
 const shGlsl = /* glsl */ `
@@ -39,43 +46,7 @@ vec3 srgbEncode(vec3 c) {
 }
 `;
 
-// Trilinear probe irradiance at a world point (three's frame) for a unit normal (three's frame):
-// the 8 surrounding grid probes, invalid or inactive ones skipped and the weights renormalised,
-// clamped to the grid at its border. Returns (E, weight sum); weight sum 0 means no data.
-const trilinearGlsl = /* glsl */ `
-uniform highp sampler3D probes;
-uniform vec3 gridOrigin;   // probebake frame
-uniform vec3 gridSpacing;
-uniform ivec3 gridCounts;
-vec4 probeIrradianceTrilinear(vec3 worldThree, vec3 normalThree) {
-  vec3 pb = vec3(worldThree.x, -worldThree.z, worldThree.y);  // three -> probebake frame
-  vec3 g = clamp((pb - gridOrigin) / gridSpacing, vec3(0.0), vec3(gridCounts - 1));
-  ivec3 i0 = min(ivec3(floor(g)), max(gridCounts - 2, ivec3(0)));
-  vec3 f = clamp(g - vec3(i0), 0.0, 1.0);
-  vec3 sum = vec3(0.0);
-  float wsum = 0.0;
-  for (int corner = 0; corner < 8; corner++) {
-    ivec3 o = ivec3(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
-    ivec3 p = min(i0 + o, gridCounts - 1);
-    vec3 wv = mix(1.0 - f, f, vec3(o));
-    float w = wv.x * wv.y * wv.z;
-    if (w <= 0.0 || texelFetch(probes, ivec3(10 * p.x + 9, p.y, p.z), 0).r < 0.5) continue;
-    vec3 c[9];
-    for (int i = 0; i < 9; i++) c[i] = texelFetch(probes, ivec3(10 * p.x + i, p.y, p.z), 0).rgb;
-    sum += w * shIrradiance(c, normalThree);
-    wsum += w;
-  }
-  return vec4(wsum > 0.0 ? sum / wsum : vec3(0.0), wsum);
-}
-`;
-
-const gridUniforms = {
-  probes: { value: probeTexture },
-  gridOrigin: { value: new THREE.Vector3(...data.grid.origin) },
-  gridSpacing: { value: new THREE.Vector3(...data.grid.spacing) },
-  gridCounts: { value: new THREE.Vector3(nx, ny, nz) },
-  exposure: { value: data.exposure },
-};
+const exposureUniform = { value: data.exposure };
 
 const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
 renderer.setPixelRatio(window.devicePixelRatio);
@@ -94,7 +65,7 @@ for (const mesh of data.meshes) {
     glslVersion: THREE.GLSL3,
     // Front faces only: a closed room seen from outside shows its inside (walls wound inward).
     side: THREE.FrontSide,
-    uniforms: { ...gridUniforms, albedo: { value: new THREE.Vector3(...mesh.albedo) } },
+    uniforms: { ...textureUniforms, exposure: exposureUniform, albedo: { value: new THREE.Vector3(...mesh.albedo) } },
     vertexShader: /* glsl */ `
       out vec3 vWorld;
       void main() {
@@ -110,12 +81,13 @@ for (const mesh of data.meshes) {
       in vec3 vWorld;
       out vec4 outColor;
       ${shGlsl}
-      ${trilinearGlsl}
+      ${probesGlsl}
       void main() {
         // Flat shading: the face normal, turned toward the viewer (double-sided walls).
         vec3 n = normalize(cross(dFdx(vWorld), dFdy(vWorld)));
         if (dot(n, cameraPosition - vWorld) < 0.0) n = -n;
-        vec4 e = probeIrradianceTrilinear(vWorld, n);
+        // three's frame to probebake's: (x, y, z) -> (x, -z, y).
+        vec4 e = pbIrradiance(vec3(vWorld.x, -vWorld.z, vWorld.y), vec3(n.x, -n.z, n.y));
         if (e.w <= 0.0) {  // no valid probe: a grey checker
           float check = mod(floor(vWorld.x * 4.0) + floor(vWorld.y * 4.0) + floor(vWorld.z * 4.0), 2.0);
           outColor = vec4(vec3(0.3 + 0.1 * check), 1.0);
@@ -142,7 +114,7 @@ for (const p of data.probes) {
       sh: { value: p.sh.map((c) => new THREE.Vector3(...c)) },
       flatColor: { value: new THREE.Vector3(1, 1, 1) },
       useFlat: { value: 0 },
-      exposure: gridUniforms.exposure,
+      exposure: exposureUniform,
     },
     vertexShader: /* glsl */ `
       out vec3 vNormal;

@@ -4,11 +4,13 @@
 #include <cmath>
 #include <numbers>
 
+#include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_replace.h"
 #include "probebake/engines/engine_export.h"
 #include "probebake/engines/engine_probes.h"
+#include "probebake/engines/probe_textures.h"
 #include "probebake/sh/sh_convolution.h"
 
 namespace probebake {
@@ -87,7 +89,14 @@ absl::StatusOr<std::string> ViewerPageHtml(const ProbeVolume& volume, const Scen
       data += "]}";
     }
   }
-  data += "]}";
+  data += "],\"textures\":";
+  absl::StatusOr<ProbeTextures> textures = PackProbeTextures(volume, "");
+  if (!textures.ok()) return textures.status();
+  data += textures->headerJson;
+  data += ",\"texturesBin\":\"";
+  data += absl::Base64Escape(
+      absl::string_view(reinterpret_cast<const char*>(textures->bin.data()), textures->bin.size()));
+  data += "\"}";
 
   // Inline scripts end at the first "</script": keep it out of both payloads ("<\/" is the same
   // text inside JavaScript strings and JSON).

@@ -6,9 +6,11 @@
 //   grid {origin, spacing, counts} in probebake's frame (the shader finds a point's 8 probes
 //   there); probes: every active probe with its three.js SH, validity, std_error, sample count;
 //   meshes: the scene's triangles (positions in three's frame) with their material albedo.
-// The page lights the meshes by trilinear interpolation of the probes' irradiance (skipping
-// invalid probes and renormalising, like the slices), colour = albedo * E / pi * exposure, then
-// sRGB; each probe is a small sphere shaded by its own SH (E(n) / pi * exposure); a menu switches
+//   textures: the probes as `export --format textures` packs them (probe_textures.h; header and
+//   base64 binary).
+// The page lights the meshes through integrations/shaders/probebake_probes.glsl on those textures
+// (trilinear, invalid probes skipped and the weights renormalised, like the slices), colour =
+// albedo * E / pi * exposure, then sRGB; each probe is a small sphere shaded by its own SH (E(n) / pi * exposure); a menu switches
 // the spheres to validity, std_error or sample-count colours.
 #pragma once
 
