@@ -6,6 +6,8 @@
 //   probebake merge PART.vdb... -o OUT.vdb
 //   probebake inspect OUT.vdb [--json] [--slice AXIS=VALUE -o PNG]
 //   probebake sample OUT.vdb --points POINTS.json
+//   probebake export OUT.vdb --format threejs|unity|textures -o FILE.json
+//   probebake view OUT.vdb [--scene JOB.json] [--exposure X] -o view.html
 //   probebake submit JOB.json [--wait] [-o OUT.vdb] [--skip-cache] [--request-id ID]
 //   probebake watch NAME | status NAME | fetch NAME -o OUT.vdb | cancel NAME | delete NAME | list
 //   client options: --server ADDR ($PROBEBAKE_SERVER, default 127.0.0.1:50051),
@@ -24,6 +26,8 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <optional>
+#include <string_view>
 
 #include <CLI/CLI.hpp>
 
@@ -35,6 +39,8 @@
 #include "client/progress.h"
 #include "probebake/bake/bake.h"
 #include "probebake/base/log.h"
+#include "probebake/engines/engine_export.h"
+#include "probebake/engines/viewer_page.h"
 #include "probebake/job/asset_source.h"
 #include "probebake/job/file_refs.h"
 #include "probebake/job/job.h"
@@ -51,6 +57,11 @@
 #include "runtime/job_state.h"
 #include "runtime/shard_plan.h"
 #include "runtime/shard_progress.h"
+
+namespace probebake {
+// The viewer's JavaScript, embedded at build time (web/CMakeLists.txt); empty without it.
+extern const std::string_view kViewerBundle;
+}  // namespace probebake
 
 namespace probebake::client {
 namespace {
@@ -342,7 +353,47 @@ int RunInspect(const std::string& path, bool json, const std::string& slice,
   if (json)
     std::printf("%s\n", VolumeReportJson(*report).c_str());
   else
-    std::printf("%s", FormatVolumeReport(*report).c_str());
+    std::printf("%s\nsee it in a browser: probebake view %s [--scene JOB.json] -o view.html\n",
+                FormatVolumeReport(*report).c_str(), path.c_str());
+  return kExitOk;
+}
+
+// ---- export, view (docs/engines.md) ----
+
+int RunExport(const std::string& path, const std::string& format, const std::string& out) {
+  absl::StatusOr<EngineFormat> parsed = ParseEngineFormat(format);
+  if (!parsed.ok()) return Fail(kExitUsage, std::string(parsed.status().message()));
+  if (const int code = CheckOutput(out); code != kExitOk) return code;
+  absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
+  if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+  if (absl::Status written = WriteEngineExport(file->volume, *parsed, out); !written.ok())
+    return Fail(kExitUsage, absl::StrCat(path, ": ", written.message()));
+  std::fprintf(stderr, "wrote %s\n", out.c_str());
+  return kExitOk;
+}
+
+int RunView(const std::string& path, const std::string& jobPath, double exposure,
+            const std::string& out) {
+  if (kViewerBundle.empty())
+    return Fail(kExitUsage,
+                "view: this probebake was built without the viewer (-DPROBEBAKE_VIEWER=OFF)");
+  if (const int code = CheckOutput(out); code != kExitOk) return code;
+  absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
+  if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+  std::optional<BakeJob> job;
+  if (!jobPath.empty()) {
+    absl::StatusOr<BakeJob> loaded = LoadBakeJob(jobPath, JobLimits());
+    if (!loaded.ok()) return Fail(loaded.status(), "--scene " + jobPath);
+    job = std::move(*loaded);
+  }
+  ViewerOptions options;
+  options.exposure = exposure;
+  absl::StatusOr<std::string> html =
+      ViewerPageHtml(file->volume, job ? &job->scene : nullptr, kViewerBundle, options);
+  if (!html.ok()) return Fail(kExitUsage, absl::StrCat(path, ": ", html.status().message()));
+  if (absl::Status written = WriteTextFileAtomically(out, *html); !written.ok())
+    return Fail(kExitUsage, std::string(written.message()));
+  std::fprintf(stderr, "wrote %s\n", out.c_str());
   return kExitOk;
 }
 
@@ -580,6 +631,7 @@ int Main(int argc, char** argv) {
       "Documentation, in the docs/ folder of the probebake repository:\n"
       "  job-format.md      the job file\n"
       "  volume-format.md   the .vdb a bake writes (inspect, merge)\n"
+      "  engines.md         exports to engines and the viewer (export, view)\n"
       "  cluster.md         sharded bakes on a farm (plan, bake --shard, merge)\n"
       "  service.md         the server, and the commands that drive it (submit ... list)");
   app.require_subcommand(1);
@@ -637,6 +689,20 @@ int Main(int argc, char** argv) {
       ->add_option("--points", pointsPath,
                    "JSON array of {\"position\": [x, y, z], \"normal\": [x, y, z]}")
       ->required();
+  std::string format, sceneJob;
+  double exposure = 0;
+  CLI::App* exportCmd =
+      app.add_subcommand("export", "Write a volume's probes for an engine (docs/engines.md)");
+  exportCmd->add_option("volume", path, "Probe volume (.vdb)")->required();
+  exportCmd->add_option("--format", format, "threejs, unity or textures")->required();
+  exportCmd->add_option("-o,--output", out, "File to write (.json)")->required();
+  CLI::App* view = app.add_subcommand(
+      "view", "Write a self-contained HTML page showing the probes (and the scene) in 3D");
+  view->add_option("volume", path, "Probe volume (.vdb)")->required();
+  view->add_option("--scene", sceneJob, "Job file whose meshes to show, lit by the probes");
+  view->add_option("--exposure", exposure, "Colour scale before sRGB (default: automatic)")
+      ->check(CLI::PositiveNumber);
+  view->add_option("-o,--output", out, "Page to write (.html)")->required();
 
   std::vector<std::string> parts;
   CLI::App* merge =
@@ -689,6 +755,8 @@ int Main(int argc, char** argv) {
   if (*plan) return RunPlan(jobPath, shardCount, threads, json);
   if (*inspect) return RunInspect(path, json, slice, out);
   if (*sample) return RunSample(path, pointsPath);
+  if (*exportCmd) return RunExport(path, format, out);
+  if (*view) return RunView(path, sceneJob, exposure, out);
   if (*merge) return RunMerge(parts, out);
   if (*submit) return RunSubmit(flags, jobPath, wait, out, skipCache, requestId);
   if (*watch) return RunWatch(flags, name);

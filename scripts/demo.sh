@@ -38,6 +38,7 @@ echo "demo: probebake-server listening on $SERVER (log: $OUT/demo-server.log)"
 "$BIN/probebake" inspect "$OUT/demo.vdb"
 "$BIN/probebake" inspect "$OUT/demo.vdb" --slice z=1.0 -o "$OUT/demo-slice-z1.png"
 "$BIN/probebake" inspect "$OUT/demo.vdb" --slice x=0.0 -o "$OUT/demo-slice-x0.png"
+"$BIN/probebake" view "$OUT/demo.vdb" --scene tests/data/demo/demo.json -o "$OUT/demo.html"
 
 cat <<MSG
 
@@ -45,4 +46,5 @@ demo: done.
   probe volume:     $OUT/demo.vdb  (OpenVDB; 'probebake inspect $OUT/demo.vdb', or pyopenvdb)
   irradiance slices: $OUT/demo-slice-z1.png (horizontal, 1 m above the floor, facing up)
                      $OUT/demo-slice-x0.png (vertical, through the room's middle, facing +x)
+  3D view:           $OUT/demo.html (open in a browser; docs/engines.md)
 MSG

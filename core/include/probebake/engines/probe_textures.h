@@ -1,0 +1,49 @@
+// Probe textures a shader samples directly (`probebake export VOLUME --format textures -o
+// OUT.json`, docs/engines.md): the volume's L2 radiance SH as 3D textures over the probe grid, in
+// the packing engines use (Unity's APV and Unreal: L0 and L1 in RGBA16F, L2 scaled into RGBA8).
+//
+// Files: OUT.json (the header below) and its binary beside it, OUT.json with ".json" replaced by
+// ".bin" (or ".bin" appended). The binary holds the textures one after the other, in the header's
+// order; each is nx * ny * nz texels, x fastest, then y, then z (texel (i, j, k) is probe (i, j,
+// k), ProbeGrid::LinearIndex), 4 channels per texel, little-endian:
+//   L0_validity  RGBA16F  (L0.r, L0.g, L0.b, usable ? 1 : 0)
+//   L1_r, L1_g, L1_b  RGBA16F  (c1, c2, c3, 0) of that colour channel
+//   L2_0 .. L2_3  RGBA8 UNORM  the 15 values c4..c8 of r, then of g, then of b, 4 per texel in
+//                 that order (the 16th byte is 128), each stored as
+//                 q = round(255 (0.5 + v / (2 l2Scale))), read back as v = (q / 255 - 0.5) 2
+//                 l2Scale
+// Coefficients are radiance SH in probebake's frame and basis (sh_basis.h): a shader maps its
+// normal into probebake's frame first (three: (x, -z, y) of three's; Unity: (x, z, y) of Unity's).
+// Probes that are inactive or unusable (validity < 0.5) hold 0 everywhere, alpha 0 in L0_validity.
+// Header: {"format": "probebake-probe-textures", "version": 1, "counts": [nx, ny, nz],
+//   "origin": [x, y, z], "spacing": [x, y, z] (probebake frame; texel centres are probes),
+//   "l2Scale": s (max |L2| over usable probes, 1 if all are 0), "bin": "<file name>",
+//   "textures": [{"name", "format": "RGBA16F" | "RGBA8", "offset", "bytes"}, ...]}.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "probebake/bake/probe_volume.h"
+#include "probebake/base/status.h"
+
+namespace probebake {
+
+struct ProbeTextures {
+  std::string headerJson;
+  std::vector<uint8_t> bin;
+  double l2Scale = 1;
+};
+
+// Packs `volume` as above (`binName` is recorded in the header). Errors as EngineProbes.
+absl::StatusOr<ProbeTextures> PackProbeTextures(const ProbeVolume& volume,
+                                                const std::string& binName);
+
+// Writes OUT.json and its binary (both atomically; the binary first). Errors name the path.
+absl::Status WriteProbeTextures(const ProbeVolume& volume, const std::string& jsonPath);
+
+// The binary's path for a header path: ".json" replaced by ".bin", else ".bin" appended.
+std::string ProbeTexturesBinPath(const std::string& jsonPath);
+
+}  // namespace probebake

@@ -1,0 +1,97 @@
+#include "probebake/engines/probe_textures.h"
+
+#include <Imath/half.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "probebake/engines/engine_export.h"
+#include "probebake/engines/engine_probes.h"
+
+namespace probebake {
+namespace {
+
+void PutHalf(std::vector<uint8_t>* bin, size_t at, double v) {
+  const uint16_t bits = Imath::half(static_cast<float>(v)).bits();
+  (*bin)[at] = static_cast<uint8_t>(bits & 0xff);
+  (*bin)[at + 1] = static_cast<uint8_t>(bits >> 8);
+}
+
+}  // namespace
+
+std::string ProbeTexturesBinPath(const std::string& jsonPath) {
+  if (absl::EndsWith(jsonPath, ".json")) return jsonPath.substr(0, jsonPath.size() - 5) + ".bin";
+  return jsonPath + ".bin";
+}
+
+absl::StatusOr<ProbeTextures> PackProbeTextures(const ProbeVolume& volume,
+                                                const std::string& binName) {
+  absl::StatusOr<std::vector<EngineProbe>> probes = EngineProbes(volume);
+  if (!probes.ok()) return probes.status();
+  const ProbeGrid& g = volume.grid;
+  const size_t texels = static_cast<size_t>(g.ProbeCount());
+  ProbeTextures out;
+  double l2Max = 0;
+  for (const EngineProbe& p : *probes)
+    if (p.usable)
+      for (int c = 4; c < 9; ++c)
+        for (int ch = 0; ch < 3; ++ch) l2Max = std::max(l2Max, std::abs(p.radiance[c][ch]));
+  out.l2Scale = l2Max > 0 ? l2Max : 1;
+
+  const size_t halfBytes = texels * 8, byteBytes = texels * 4;
+  out.bin.assign(4 * halfBytes + 4 * byteBytes, 0);
+  // Unusable texels: half zeros are 0 bits; L2 bytes encode 0 as 128 (q for v = 0 rounds up).
+  std::fill(out.bin.begin() + 4 * halfBytes, out.bin.end(), uint8_t{128});
+  for (const EngineProbe& p : *probes) {
+    if (!p.usable) continue;
+    const size_t t = static_cast<size_t>(p.index);
+    for (int ch = 0; ch < 3; ++ch) PutHalf(&out.bin, 8 * t + 2 * ch, p.radiance[0][ch]);
+    PutHalf(&out.bin, 8 * t + 6, 1.0);
+    for (int ch = 0; ch < 3; ++ch)
+      for (int c = 1; c <= 3; ++c)
+        PutHalf(&out.bin, (1 + ch) * halfBytes + 8 * t + 2 * (c - 1), p.radiance[c][ch]);
+    for (int v = 0; v < 15; ++v) {
+      const int ch = v / 5, c = 4 + v % 5;
+      const double unit = 0.5 + p.radiance[c][ch] / (2 * out.l2Scale);
+      const double q = std::round(255 * std::clamp(unit, 0.0, 1.0));
+      out.bin[4 * halfBytes + (v / 4) * byteBytes + 4 * t + v % 4] = static_cast<uint8_t>(q);
+    }
+  }
+
+  std::string& h = out.headerJson;
+  absl::StrAppendFormat(&h,
+                        "{\"format\":\"probebake-probe-textures\",\"version\":1,"
+                        "\"counts\":[%d,%d,%d],\"origin\":[%.17g,%.17g,%.17g],"
+                        "\"spacing\":[%.17g,%.17g,%.17g],\"l2Scale\":%.9g,\"bin\":\"%s\","
+                        "\"textures\":[",
+                        g.counts[0], g.counts[1], g.counts[2], g.origin.x, g.origin.y, g.origin.z,
+                        g.spacing.x, g.spacing.y, g.spacing.z, out.l2Scale, binName);
+  const char* names[] = {"L0_validity", "L1_r", "L1_g", "L1_b", "L2_0", "L2_1", "L2_2", "L2_3"};
+  size_t offset = 0;
+  for (int i = 0; i < 8; ++i) {
+    const size_t bytes = i < 4 ? halfBytes : byteBytes;
+    absl::StrAppendFormat(&h, "%s{\"name\":\"%s\",\"format\":\"%s\",\"offset\":%d,\"bytes\":%d}",
+                          i ? "," : "", names[i], i < 4 ? "RGBA16F" : "RGBA8", offset, bytes);
+    offset += bytes;
+  }
+  h += "]}\n";
+  return out;
+}
+
+absl::Status WriteProbeTextures(const ProbeVolume& volume, const std::string& jsonPath) {
+  const std::string binPath = ProbeTexturesBinPath(jsonPath);
+  const size_t slash = binPath.find_last_of('/');
+  absl::StatusOr<ProbeTextures> packed =
+      PackProbeTextures(volume, slash == std::string::npos ? binPath : binPath.substr(slash + 1));
+  if (!packed.ok()) return packed.status();
+  if (absl::Status written =
+          WriteTextFileAtomically(binPath, std::string(packed->bin.begin(), packed->bin.end()));
+      !written.ok())
+    return written;
+  return WriteTextFileAtomically(jsonPath, packed->headerJson);
+}
+
+}  // namespace probebake

@@ -1,0 +1,109 @@
+// The textures export read back: header and binary decoded as docs/engines.md says, irradiance of
+// the decoded coefficients against the core's at every usable probe, within the bound the
+// quantisation gives (half: relative 2^-11 per coefficient; L2 bytes: l2Scale / 255 absolute).
+#include <Imath/half.h>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "engine_test_util.h"
+#include "probebake/engines/probe_textures.h"
+#include "probebake/sh/sh_basis.h"
+#include "probebake/sh/sh_convolution.h"
+#include "probebake/volume/vdb_io.h"
+#include "volume/test_volumes.h"
+
+namespace probebake::testing {
+namespace {
+
+double Half(const std::string& bin, size_t at) {
+  Imath::half h;
+  h.setBits(static_cast<uint16_t>(static_cast<uint8_t>(bin[at]) |
+                                  (static_cast<uint8_t>(bin[at + 1]) << 8)));
+  return static_cast<float>(h);
+}
+
+TEST(ProbeTextures, ExportDecodesToTheCoreIrradianceWithinTheQuantisationBound) {
+  TempDir dir;
+  const ProbeVolume volume = PlausibleVolume(11);
+  const std::string vdb = dir.File("probes.vdb");
+  ASSERT_TRUE(WriteProbeVolume(vdb, volume, MakeTestMetadata()).ok());
+  const std::string json = dir.File("tex.json");
+  ASSERT_EQ(
+      RunCommand(std::string(PROBEBAKE_CLI) + " export " + vdb + " --format textures -o " + json),
+      0);
+  const google::protobuf::Struct header = ParseJson(ReadFileText(json));
+  EXPECT_EQ(header.fields().at("format").string_value(), "probebake-probe-textures");
+  EXPECT_EQ(header.fields().at("bin").string_value(), "tex.bin");
+  const std::string bin = ReadFileText(dir.File("tex.bin"));
+  const double l2Scale = header.fields().at("l2Scale").number_value();
+  const auto& textures = header.fields().at("textures").list_value();
+  ASSERT_EQ(textures.values_size(), 8);
+  const size_t texels = static_cast<size_t>(volume.grid.ProbeCount());
+  size_t offsets[8];
+  size_t total = 0;
+  for (int i = 0; i < 8; ++i) {
+    const auto& t = textures.values(i).struct_value().fields();
+    offsets[i] = static_cast<size_t>(t.at("offset").number_value());
+    EXPECT_EQ(offsets[i], total);
+    EXPECT_EQ(t.at("bytes").number_value(), (i < 4 ? 8.0 : 4.0) * texels);
+    EXPECT_EQ(t.at("format").string_value(), i < 4 ? "RGBA16F" : "RGBA8");
+    total += static_cast<size_t>(t.at("bytes").number_value());
+  }
+  ASSERT_EQ(bin.size(), total);
+
+  int usable = 0, unusable = 0;
+  double worstRatio = 0;
+  for (size_t t = 0; t < texels; ++t) {
+    const bool isUsable = volume.active[t] && volume.validity[t] >= 0.5f;
+    EXPECT_EQ(Half(bin, offsets[0] + 8 * t + 6), isUsable ? 1.0 : 0.0) << t;
+    if (!isUsable) {
+      ++unusable;
+      continue;
+    }
+    ++usable;
+    Vec3d c[9], err[9];
+    for (int ch = 0; ch < 3; ++ch) {
+      c[0][ch] = Half(bin, offsets[0] + 8 * t + 2 * ch);
+      for (int k = 1; k <= 3; ++k) c[k][ch] = Half(bin, offsets[1 + ch] + 8 * t + 2 * (k - 1));
+    }
+    for (int v = 0; v < 15; ++v) {
+      const int ch = v / 5, k = 4 + v % 5;
+      const double q = static_cast<uint8_t>(bin[offsets[4 + v / 4] + 4 * t + v % 4]);
+      c[k][ch] = (q / 255 - 0.5) * 2 * l2Scale;
+    }
+    for (int k = 0; k < 9; ++k)
+      for (int ch = 0; ch < 3; ++ch) {
+        const double exact = volume.radiance[k][3 * t + ch];
+        err[k][ch] = k < 4 ? std::ldexp(std::abs(exact), -11) : l2Scale / 255;
+      }
+    for (const Vec3d& n : {Vec3d{0, 0, 1}, Vec3d{0, 0, -1}, Vec3d{1, 0, 0}, Vec3d{0.48, 0.6, 0.64},
+                           Vec3d{-0.6, 0.64, -0.48}}) {
+      double y[9];
+      EvalShBasis(2, n, y);
+      std::array<Vec3d, 9> exact;
+      for (int k = 0; k < 9; ++k)
+        exact[k] = {volume.radiance[k][3 * t], volume.radiance[k][3 * t + 1],
+                    volume.radiance[k][3 * t + 2]};
+      const Vec3d want = IrradianceAtRgb(2, exact, n);
+      for (int ch = 0; ch < 3; ++ch) {
+        double got = 0, bound = 1e-12;
+        for (int k = 0; k < 9; ++k) {
+          const double a = IrradianceBandFactor(k == 0 ? 0 : (k < 4 ? 1 : 2));
+          got += a * c[k][ch] * y[k];
+          bound += a * err[k][ch] * std::abs(y[k]);
+        }
+        EXPECT_LE(std::abs(got - want[ch]), bound)
+            << "texel " << t << " channel " << ch << ": decoded " << got << ", core " << want[ch];
+        worstRatio = std::max(worstRatio, std::abs(got - want[ch]) / bound);
+      }
+    }
+  }
+  EXPECT_GT(usable, 10);
+  EXPECT_GT(unusable, 0);
+  std::printf("textures: %d usable texels, worst error / bound %.3g\n", usable, worstRatio);
+}
+
+}  // namespace
+}  // namespace probebake::testing
