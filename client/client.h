@@ -29,7 +29,7 @@ struct ConnectOptions {
 
 // What uploading a job's files did.
 struct UploadReport {
-  int files = 0;          // file references in the job
+  int files = 0;          // distinct files the job and its models reference
   int uploaded = 0;       // blobs sent (the rest the server had)
   int64_t bytesSent = 0;  // bytes of the uploaded blobs
   // Every file reference rewritten to a blob: its field ("scene.meshes[0].file"), its path as

@@ -15,6 +15,8 @@ PACKAGES=(
   libspdlog-dev libtbb-dev libsqlite3-dev libcli11-dev
   # tests and benchmarks
   libgtest-dev libbenchmark-dev
+  # third-party models every importer path is tested against (tests/server/testmodels_test.cpp)
+  assimp-testmodels
   # Python-side interop tests (Debian's interpreter: /usr/bin/python3)
   python3 python3-grpcio python3-protobuf python3-numpy python3-openvdb
   # the Slurm backend and its end-to-end test (a one-node cluster: scripts/slurm-cluster.sh)
