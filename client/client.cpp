@@ -202,7 +202,14 @@ absl::StatusOr<UploadReport> Client::UploadJobFiles(const std::filesystem::path&
       if (auto it = files.find(inJob); it != files.end()) return it->second.first;
       absl::StatusOr<std::string> bytes =
           local.ReadReferencedFile(ref.relativePath, modelPath, ref.fieldPath);
-      if (!bytes.ok()) return std::nullopt;
+      if (!bytes.ok()) {
+        const std::string meshPath = ref.fieldPath.substr(0, ref.fieldPath.rfind('.'));
+        report.unreadable.push_back(
+            {meshPath + ".references: ",
+             absl::StrCat("references \"", modelPath, "\", which is not listed"),
+             std::string(bytes.status().message())});
+        return std::nullopt;
+      }
       v1::Digest digest = DigestOf(*bytes);
       return files.emplace(inJob, std::make_pair(std::move(*bytes), digest)).first->second.first;
     };
@@ -271,6 +278,11 @@ absl::Status CheckServerAddress(const std::string& target) {
 
 absl::Status NameUploadedFiles(const absl::Status& status, const UploadReport& uploads) {
   if (status.ok() || uploads.rewrites.empty()) return status;
+  for (const UploadReport::Unreadable& u : uploads.unreadable) {
+    const size_t at = status.message().find(u.serverField);
+    if (at != std::string::npos && status.message().find(u.serverTail, at) != std::string::npos)
+      return absl::Status(status.code(), u.localMessage);
+  }
   std::string message(status.message());
   for (const UploadReport::Rewrite& r : uploads.rewrites) {
     // "scene.meshes[0].file" -> "scene.meshes[0].blob" is the field the server names.

@@ -82,13 +82,6 @@ absl::StatusOr<std::string> LocalAssetSource::ReadBlob(const v1::Digest& digest,
   return bytes;
 }
 
-absl::StatusOr<std::string> AssetSource::ReadReferencedFile(const std::string& modelFile,
-                                                            const std::string& modelPath,
-                                                            const std::string& fieldPath) const {
-  return FieldError(fieldPath, Quoted(modelFile) + " references " + Quoted(modelPath) +
-                                   ", and only local bakes read files");
-}
-
 absl::StatusOr<std::string> LocalAssetSource::ReadReferencedFile(
     const std::string& modelFile, const std::string& modelPath,
     const std::string& fieldPath) const {

@@ -33,11 +33,11 @@ class AssetSource {
                                                const std::string& fieldPath) const = 0;
 
   // The bytes of the file `modelPath` (normalized: NormalizeModelPath) that the model file
-  // `modelFile` (relative to the job file) references, relative to the model's folder. The default
-  // refuses (INVALID_ARGUMENT): only local bakes read files.
+  // `modelFile` (relative to the job file) references, relative to the model's folder.
+  // Only local bakes read files: a server's source refuses (INVALID_ARGUMENT).
   virtual absl::StatusOr<std::string> ReadReferencedFile(const std::string& modelFile,
                                                          const std::string& modelPath,
-                                                         const std::string& fieldPath) const;
+                                                         const std::string& fieldPath) const = 0;
 };
 
 // Reads files relative to the job file's folder, and optionally blobs from a folder holding each
