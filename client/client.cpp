@@ -179,13 +179,51 @@ absl::StatusOr<UploadReport> Client::UploadJobFiles(const std::filesystem::path&
   // The local bake's reader, for its checks and messages (a folder named as a file is refused,
   // not uploaded as an empty blob); the server applies its own size limit.
   const LocalAssetSource local(jobDir.string(), "", /*maxBytes=*/0);
+  // The files each mesh's model references, by the path the model writes (uploaded as blobs too;
+  // keyed in `files` by their path relative to the job file, so a texture shared by many models is
+  // one upload). One the model names but that cannot be read is not uploaded: the server refuses
+  // the job, naming it, if the import needs it, as a local bake would.
+  std::map<int, std::map<std::string, v1::Digest>> meshReferences;
   for (const FileReference& ref : refs) {
-    if (files.count(ref.relativePath)) continue;
-    absl::StatusOr<std::string> bytes = local.ReadFile(ref.relativePath, ref.fieldPath);
-    if (!bytes.ok()) return bytes.status();
-    v1::Digest digest = DigestOf(*bytes);
-    files.emplace(ref.relativePath, std::make_pair(std::move(*bytes), digest));
+    if (files.count(ref.relativePath) && ref.kind != FileReference::Kind::kMesh) continue;
+    if (!files.count(ref.relativePath)) {
+      absl::StatusOr<std::string> bytes = local.ReadFile(ref.relativePath, ref.fieldPath);
+      if (!bytes.ok()) return bytes.status();
+      v1::Digest digest = DigestOf(*bytes);
+      files.emplace(ref.relativePath, std::make_pair(std::move(*bytes), digest));
+    }
+    if (ref.kind != FileReference::Kind::kMesh) continue;
+    const std::optional<std::string> format = MeshFormatOf(job->scene().meshes(ref.meshIndex));
+    if (!format) continue;  // ReplaceFileWithBlob names the problem
+    auto readReference = [&](const std::string& modelPath) -> std::optional<std::string> {
+      const std::string inJob = (std::filesystem::path(ref.relativePath).parent_path() / modelPath)
+                                    .lexically_normal()
+                                    .generic_string();
+      if (auto it = files.find(inJob); it != files.end()) return it->second.first;
+      absl::StatusOr<std::string> bytes =
+          local.ReadReferencedFile(ref.relativePath, modelPath, ref.fieldPath);
+      if (!bytes.ok()) {
+        const std::string meshPath = ref.fieldPath.substr(0, ref.fieldPath.rfind('.'));
+        report.unreadable.push_back(
+            {meshPath + ".references: ",
+             absl::StrCat("references \"", modelPath, "\", which is not listed"),
+             std::string(bytes.status().message())});
+        return std::nullopt;
+      }
+      v1::Digest digest = DigestOf(*bytes);
+      return files.emplace(inJob, std::make_pair(std::move(*bytes), digest)).first->second.first;
+    };
+    std::map<std::string, v1::Digest>& references = meshReferences[ref.meshIndex];
+    for (const std::string& modelPath :
+         ListModelReferences(files.at(ref.relativePath).first, *format, readReference)) {
+      if (!readReference(modelPath)) continue;
+      const std::string inJob = (std::filesystem::path(ref.relativePath).parent_path() / modelPath)
+                                    .lexically_normal()
+                                    .generic_string();
+      references[modelPath] = files.at(inJob).second;
+    }
   }
+  report.files = int(files.size());
   v1::FindMissingBlobsRequest find;
   for (const auto& [path, file] : files) *find.add_blob_digests() = file.second;
   v1::FindMissingBlobsResponse missing;
@@ -210,6 +248,11 @@ absl::StatusOr<UploadReport> Client::UploadJobFiles(const std::filesystem::path&
     const v1::Digest& digest = files.at(it->relativePath).second;
     PB_RETURN_IF_ERROR(ReplaceFileWithBlob(*it, digest, job));
     report.rewrites.push_back({it->fieldPath, it->relativePath, digest.hash()});
+    if (it->kind == FileReference::Kind::kMesh) {
+      auto* references = job->mutable_scene()->mutable_meshes(it->meshIndex)->mutable_references();
+      for (const auto& [modelPath, referenced] : meshReferences[it->meshIndex])
+        (*references)[modelPath] = referenced;
+    }
   }
   return report;
 }
@@ -235,6 +278,11 @@ absl::Status CheckServerAddress(const std::string& target) {
 
 absl::Status NameUploadedFiles(const absl::Status& status, const UploadReport& uploads) {
   if (status.ok() || uploads.rewrites.empty()) return status;
+  for (const UploadReport::Unreadable& u : uploads.unreadable) {
+    const size_t at = status.message().find(u.serverField);
+    if (at != std::string::npos && status.message().find(u.serverTail, at) != std::string::npos)
+      return absl::Status(status.code(), u.localMessage);
+  }
   std::string message(status.message());
   for (const UploadReport::Rewrite& r : uploads.rewrites) {
     // "scene.meshes[0].file" -> "scene.meshes[0].blob" is the field the server names.

@@ -29,7 +29,7 @@ struct ConnectOptions {
 
 // What uploading a job's files did.
 struct UploadReport {
-  int files = 0;          // file references in the job
+  int files = 0;          // distinct files the job and its models reference
   int uploaded = 0;       // blobs sent (the rest the server had)
   int64_t bytesSent = 0;  // bytes of the uploaded blobs
   // Every file reference rewritten to a blob: its field ("scene.meshes[0].file"), its path as
@@ -38,11 +38,19 @@ struct UploadReport {
     std::string fieldPath, relativePath, hash;
   };
   std::vector<Rewrite> rewrites;
+  // A file a model references that could not be read, so was not uploaded: the server's refusal
+  // when its import needs it ("<mesh>.references: ... references \"x\", which is not listed") and
+  // the local reader's error, which the CLI reports instead (what a local bake says).
+  struct Unreadable {
+    std::string serverField, serverTail, localMessage;
+  };
+  std::vector<Unreadable> unreadable;
 };
 
 // `status` with the server's names of uploaded files put back as the user wrote them: the
 // server reports "scene.meshes[0].blob: cannot import \"blob <hash>\" ...", the user's job says
-// "scene.meshes[0].file" and "room.obj".
+// "scene.meshes[0].file" and "room.obj". A refusal for a referenced file that could not be read
+// becomes the local reader's error.
 // OK when `target` can name a server: HOST:PORT (port 1-65535; an IPv6 host in brackets) or a
 // gRPC target URI (dns:, unix:, unix-abstract:, ipv4:, ipv6:, vsock:). INVALID_ARGUMENT saying why
 // not otherwise (gRPC would only report the server unreachable).

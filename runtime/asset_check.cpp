@@ -33,6 +33,12 @@ class AnnouncingAssetSource final : public AssetSource {
     Announce(fieldPath);
     return inner_.ReadBlob(digest, fieldPath);
   }
+  absl::StatusOr<std::string> ReadReferencedFile(const std::string& modelFile,
+                                                 const std::string& modelPath,
+                                                 const std::string& fieldPath) const override {
+    Announce(fieldPath);
+    return inner_.ReadReferencedFile(modelFile, modelPath, fieldPath);
+  }
 
  private:
   static void Announce(const std::string& fieldPath) {

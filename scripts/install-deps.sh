@@ -18,6 +18,8 @@ PACKAGES=(
   # the viewer and engine exports (web/): node + npm bundle three.js at build time and run it in
   # the three.js export test; headless chromium renders the viewer in its test
   nodejs npm chromium
+  # third-party models every importer path is tested against (tests/server/testmodels_test.cpp)
+  assimp-testmodels
   # Python-side interop tests (Debian's interpreter: /usr/bin/python3)
   python3 python3-grpcio python3-protobuf python3-numpy python3-openvdb
   # the Slurm backend and its end-to-end test (a one-node cluster: scripts/slurm-cluster.sh)

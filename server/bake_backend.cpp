@@ -18,6 +18,12 @@ absl::StatusOr<std::string> BlobAssetSource::ReadFile(const std::string& /*relat
   return absl::InvalidArgumentError(ClientPathRefusal(fieldPath));
 }
 
+absl::StatusOr<std::string> BlobAssetSource::ReadReferencedFile(
+    const std::string& /*modelFile*/, const std::string& /*modelPath*/,
+    const std::string& fieldPath) const {
+  return absl::InvalidArgumentError(ClientPathRefusal(fieldPath));
+}
+
 absl::StatusOr<std::string> BlobAssetSource::ReadBlob(const v1::Digest& digest,
                                                       const std::string& fieldPath) const {
   PB_RETURN_IF_ERROR(ValidateDigest(digest, fieldPath));

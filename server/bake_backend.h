@@ -65,6 +65,10 @@ class BlobAssetSource final : public AssetSource {
   // reference it by blob".
   absl::StatusOr<std::string> ReadFile(const std::string& relativePath,
                                        const std::string& fieldPath) const override;
+  // Always INVALID_ARGUMENT, as ReadFile.
+  absl::StatusOr<std::string> ReadReferencedFile(const std::string& modelFile,
+                                                 const std::string& modelPath,
+                                                 const std::string& fieldPath) const override;
   // FAILED_PRECONDITION when the blob is not stored; INVALID_ARGUMENT past maxBytes (0: none).
   absl::StatusOr<std::string> ReadBlob(const v1::Digest& digest,
                                        const std::string& fieldPath) const override;

@@ -11,6 +11,7 @@
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "job/test_util.h"
+#include "probebake/job/file_refs.h"
 #include "probebake/job/job.h"
 #include "probebake/job/job_json.h"
 
@@ -260,21 +261,42 @@ TEST(MeshImport, BadFilesAreRejectedWithThePath) {
   EXPECT_EQ(bell.message().find('\a'), std::string::npos) << bell;
   dir.Write("external.gltf", GltfJson("external.bin", GltfBuffer().size()));
   EXPECT_TRUE(HasFieldError(BuildMeshJob(dir, "external.gltf").status(), "scene.meshes[0].file",
-                            "cannot import \"external.gltf\""));
+                            "\"external.gltf\" references \"external.bin\": cannot read it"));
 }
 
-TEST(MeshImport, FilesAModelNamesAreNeverOpened) {
-  // A server must not open a path a request names (docs/service.md): a glTF's external buffer is
-  // refused even when the file exists (assimp used to read it from disk).
+TEST(MeshImport, ExternalBuffersAreReadBesideTheModelAndNothingOutsideTheJobFolder) {
   TempDir dir;
-  dir.Write("buffer.bin", GltfBuffer());
-  dir.Write("external.gltf", GltfJson(dir.File("buffer.bin"), GltfBuffer().size()));
-  // Refused before assimp sees it, saying what to do (embedded buffers and GLB's own chunk pass:
-  // GltfWithEmbeddedBuffer, Glb).
-  EXPECT_TRUE(
-      HasFieldError(BuildMeshJob(dir, "external.gltf").status(), "scene.meshes[0].file",
-                    "buffer 0 is the separate file \"" + dir.File("buffer.bin") +
-                        "\", and glTF buffers must be embedded: export glTF Binary (.glb)"));
+  const std::string bin = GltfBuffer();
+  std::filesystem::create_directories(std::filesystem::path(dir.File("sub")));
+  dir.Write("sub/buffer.bin", bin);
+  // A relative uri is read relative to the model, and its bytes are in the job digest.
+  dir.Write("sub/m.gltf", GltfJson("./buffer.bin", bin.size()));
+  const absl::StatusOr<BakeJob> built = BuildMeshJob(dir, "sub/m.gltf", kQuarterTurn);
+  ExpectGltfMesh(built);
+  dir.Write("sub/buffer.bin", bin.substr(0, bin.size() - 2) + std::string(2, '\x7f'));
+  const absl::StatusOr<BakeJob> changed = BuildMeshJob(dir, "sub/m.gltf", kQuarterTurn);
+  ASSERT_TRUE(changed.ok()) << changed.status();
+  EXPECT_NE(built->jobDigest, changed->jobDigest);
+
+  // Absolute paths, schemes, paths leading out of the job folder and symlinks out of it are
+  // refused, naming the mesh's field and the path the model wrote.
+  TempDir outside;
+  outside.Write("buffer.bin", bin);
+  const std::vector<std::pair<std::string, std::string>> refused = {
+      {outside.File("buffer.bin"), "an absolute path"},
+      {"file:///etc/passwd", "a URI scheme"},
+      {"http://example.com/b.bin", "a URI scheme"},
+      {"../../b.bin", "it leads out of the job file's folder"},
+      {"../link.bin", "a symlink leads out of the job file's folder"},
+      {"missing.bin", "cannot read it"}};
+  std::filesystem::create_symlink(outside.File("buffer.bin"), dir.File("link.bin"));
+  for (const auto& [uri, reason] : refused) {
+    dir.Write("sub/bad.gltf", GltfJson(uri, bin.size()));
+    EXPECT_TRUE(
+        HasFieldError(BuildMeshJob(dir, "sub/bad.gltf").status(), "scene.meshes[0].file",
+                      "\"sub/bad.gltf\" references \"" + NormalizeModelPath(uri) + "\": " + reason))
+        << uri;
+  }
 }
 
 TEST(MeshImport, OnlyTheNamedFormatIsTried) {

@@ -186,6 +186,79 @@ TEST(EndToEnd, AGridShardedAcrossALocalBakeAndAServerMergesIntoTheWholeBake) {
   EXPECT_EQ(server.process().Wait(seconds(10)), 0);
 }
 
+// A floor quad as a .gltf (z = 0, 20 x 20) whose buffer is the separate file `bin` and whose
+// base colour texture is `image`, with base colour factor `grey` and metallic 0.
+std::string FloorGltf(const std::string& bin, const std::string& image, double grey) {
+  return R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+    "nodes": [{"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]}],
+    "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [)" +
+         std::to_string(grey) + "," + std::to_string(grey) + "," + std::to_string(grey) +
+         R"(, 1], "metallicFactor": 0, "baseColorTexture": {"index": 0}}}],
+    "textures": [{"source": 0}], "images": [{"uri": ")" +
+         image + R"("}],
+    "buffers": [{"uri": ")" +
+         bin + R"(", "byteLength": 60}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                    {"buffer": 0, "byteOffset": 48, "byteLength": 12}],
+    "accessors": [
+      {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+       "min": [-10, -10, 0], "max": [10, 10, 0]},
+      {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}]})";
+}
+
+std::string FloorBin() {
+  const float positions[12] = {-10, -10, 0, 10, -10, 0, 10, 10, 0, -10, 10, 0};
+  const uint16_t indices[6] = {0, 1, 2, 0, 2, 3};
+  std::string bin(reinterpret_cast<const char*>(positions), sizeof positions);
+  bin.append(reinterpret_cast<const char*>(indices), sizeof indices);
+  return bin;
+}
+
+TEST(EndToEnd, AGltfWithExternalFilesBakesTheSameThroughTheServerAndUploadsEachFileOnce) {
+  TempDir dir;
+  std::filesystem::create_directories(dir.path() / "models" / "textures");
+  std::ofstream(dir.path() / "models" / "floor.bin", std::ios::binary) << FloorBin();
+  // The texture is read and uploaded, not yet decoded: any bytes do.
+  std::ofstream(dir.path() / "models" / "textures" / "grey.png", std::ios::binary) << "png bytes";
+  // Two models sharing the buffer and the texture: 4 distinct files.
+  std::ofstream(dir.path() / "models" / "a.gltf")
+      << FloorGltf("floor.bin", "textures/grey.png", 0.5);
+  std::ofstream(dir.path() / "models" / "b.gltf")
+      << FloorGltf("./floor.bin", "textures/../textures/grey.png", 0.25);
+  const std::filesystem::path job = dir.path() / "job.json";
+  std::ofstream(job) << R"({
+  "scene": {
+    "meshes": [{"file": "models/a.gltf"},
+               {"file": "models/b.gltf", "transform": [1,0,0,0, 0,1,0,0, 0,0,1,3, 0,0,0,1]}],
+    "lights": [{"point": {"position": [0.5, 0.5, 1.5], "intensity": [5, 5, 5]}}]
+  },
+  "grid": {"min": [-1, -1, 0.5], "max": [1, 1, 2.5], "counts": [2, 2, 2], "placement": "ALL"},
+  "settings": {"shOrder": 1, "samplesPerProbe": 32, "maxDepth": 3, "seed": 5, "irradiance": true}
+})";
+  RunResult local = Cli({"bake", job.string(), "-o", (dir.path() / "local.vdb").string()});
+  ASSERT_EQ(local.exitCode, 0) << local.err;
+  ServerProcess server(dir.path(), {"--threads", "1"});
+  RunResult submit = Cli({"submit", job.string(), "--server", server.address(), "--wait", "-o",
+                          (dir.path() / "server.vdb").string()});
+  ASSERT_EQ(submit.exitCode, 0) << submit.err << server.log();
+  ExpectSameVolume(dir.path() / "local.vdb", dir.path() / "server.vdb");
+  EXPECT_NE(submit.err.find("4 file(s): 4 uploaded"), std::string::npos) << submit.err;
+  // A missing texture is refused both ways, naming the mesh's field and the path the model wrote.
+  std::filesystem::remove(dir.path() / "models" / "textures" / "grey.png");
+  RunResult missingLocal = Cli({"bake", job.string(), "-o", (dir.path() / "m.vdb").string()});
+  RunResult missingServer = Cli({"submit", job.string(), "--server", server.address()});
+  for (const RunResult* r : {&missingLocal, &missingServer}) {
+    EXPECT_EQ(r->exitCode, 2) << r->err;
+    EXPECT_NE(r->err.find("scene.meshes[0].file: \"models/a.gltf\" references "
+                          "\"textures/grey.png\": cannot read it"),
+              std::string::npos)
+        << r->err;
+  }
+  server.process().Signal(SIGTERM);
+  EXPECT_EQ(server.process().Wait(seconds(10)), 0);
+}
+
 TEST(EndToEnd, CliExitCodes) {
   TempDir dir;
   auto job = WriteJob(dir.path(), "job.json", 2, 2, 1, 16);

@@ -82,6 +82,33 @@ absl::StatusOr<std::string> LocalAssetSource::ReadBlob(const v1::Digest& digest,
   return bytes;
 }
 
+absl::StatusOr<std::string> LocalAssetSource::ReadReferencedFile(
+    const std::string& modelFile, const std::string& modelPath,
+    const std::string& fieldPath) const {
+  const std::string what = Quoted(modelFile) + " references " + Quoted(modelPath);
+  const size_t colon = modelPath.find(':');
+  if (colon != std::string::npos && modelPath.find('/') > colon)
+    return FieldError(fieldPath, what + ": a URI scheme or drive; only relative paths are read");
+  if (modelPath.empty() || modelPath[0] == '/' || fs::path(modelPath).is_absolute())
+    return FieldError(fieldPath, what + ": an absolute path; only relative paths are read");
+  const fs::path inJob =
+      (fs::path(modelFile).parent_path() / fs::path(modelPath)).lexically_normal();
+  if (inJob.empty() || *inJob.begin() == ".." || inJob.is_absolute())
+    return FieldError(fieldPath, what + ": it leads out of the job file's folder");
+  const fs::path root = jobFileDir_.empty() ? fs::path(".") : fs::path(jobFileDir_);
+  const fs::path path = root / inJob;
+  std::error_code ec;
+  const fs::path realRoot = fs::weakly_canonical(root, ec);
+  const fs::path realPath = ec ? fs::path() : fs::weakly_canonical(path, ec);
+  if (!ec) {
+    const fs::path relative = realPath.lexically_relative(realRoot);
+    if (relative.empty() || *relative.begin() == "..")
+      return FieldError(fieldPath, what + ": a symlink leads out of the job file's folder");
+  }
+  return ReadWholeFile(path, maxBytes_, fieldPath,
+                       what + ": cannot read it (" + Escaped(path.string()) + ")");
+}
+
 std::string JobFileDir(const std::string& jobFilePath) {
   return fs::path(jobFilePath).parent_path().string();
 }

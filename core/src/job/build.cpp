@@ -94,7 +94,8 @@ class MeshBuilder {
   MeshBuilder(const AssetSource& assets, const JobLimits& limits)
       : assets_(assets), limits_(limits) {}
 
-  absl::Status Add(const v1::Mesh& spec, const std::string& path, uint32_t material,
+  // `material`: the index of the job's material for the mesh; -1 uses the file's own materials.
+  absl::Status Add(const v1::Mesh& spec, const std::string& path, int64_t material,
                    v1::Mesh* canonical, Scene* scene) {
     job_internal::ImportedMesh raw;
     if (!spec.file().empty() || spec.has_blob()) {
@@ -105,9 +106,34 @@ class MeshBuilder {
       canonical->clear_file();
       canonical->set_format(format);
       const std::string fieldPath = path + (spec.file().empty() ? ".blob" : ".file");
-      PB_ASSIGN_OR_RETURN(
-          raw, job_internal::ImportMesh(bytes, format, AssetName(spec.file(), spec.blob()),
-                                        fieldPath, triangles_, limits_.maxTriangles));
+      const std::string name = AssetName(spec.file(), spec.blob());
+      // A `file` model's references are files beside it; a `blob` model's are the blobs its
+      // `references` map names.
+      const job_internal::ReferenceReader readReference =
+          [&](const std::string& modelPath) -> absl::StatusOr<std::string> {
+        if (!spec.file().empty())
+          return assets_.ReadReferencedFile(spec.file(), modelPath, fieldPath);
+        const auto it = spec.references().find(modelPath);
+        if (it == spec.references().end()) {
+          return FieldError(path + ".references", Quoted(name) + " references " +
+                                                      Quoted(modelPath) + ", which is not listed");
+        }
+        const std::string field = path + ".references[" + Quoted(modelPath) + "]";
+        PB_ASSIGN_OR_RETURN(std::string referenced, assets_.ReadBlob(it->second, field));
+        if (limits_.maxAssetBytes > 0 && int64_t(referenced.size()) > limits_.maxAssetBytes) {
+          return FieldError(field, Num(referenced.size()) + " bytes, above the limit of " +
+                                       Num(limits_.maxAssetBytes));
+        }
+        return referenced;
+      };
+      PB_ASSIGN_OR_RETURN(raw, job_internal::ImportMesh(bytes, format, name, fieldPath, triangles_,
+                                                        limits_.maxTriangles, readReference,
+                                                        /*fileMaterials=*/material < 0));
+      // The job digest covers what the import read, whoever supplied it.
+      canonical->clear_references();
+      for (const auto& [modelPath, referenced] : raw.references)
+        (*canonical->mutable_references())[modelPath] = DigestOf(referenced);
+      raw.references.clear();
     } else {
       raw.positions.reserve(size_t(spec.positions_size() / 3));
       for (int k = 0; k + 2 < spec.positions_size(); k += 3)
@@ -118,7 +144,7 @@ class MeshBuilder {
 
     TriangleMesh mesh;
     mesh.name = spec.name();
-    mesh.material = material;
+    mesh.material = material < 0 ? 0 : uint32_t(material);
     mesh.positions = std::move(raw.positions);
     if (spec.transform_size() == 16) {
       const auto& t = spec.transform();
@@ -135,6 +161,7 @@ class MeshBuilder {
     // Drop triangles without a meaningful normal: zero area (repeated or collinear vertices), or
     // so thin that the cross product is rounding noise (sin of the angle at a below 1e-14).
     int64_t dropped = 0;
+    std::vector<uint32_t> keptMaterials;  // per kept triangle, with the file's materials
     mesh.indices.reserve(raw.indices.size());
     for (size_t k = 0; k + 2 < raw.indices.size(); k += 3) {
       const Vec3d& a = mesh.positions[raw.indices[k]];
@@ -146,6 +173,7 @@ class MeshBuilder {
         continue;
       }
       mesh.indices.insert(mesh.indices.end(), raw.indices.begin() + k, raw.indices.begin() + k + 3);
+      if (material < 0) keptMaterials.push_back(raw.triangleMaterials[k / 3]);
     }
     if (dropped > 0) {
       Logger("job")->info("{}: dropped {} zero-area triangle(s) of {}", path, dropped,
@@ -154,7 +182,35 @@ class MeshBuilder {
     if (mesh.indices.empty()) {
       return FieldError(path, "no triangle with a non-zero area");
     }
-    scene->meshes.push_back(std::move(mesh));
+    if (material >= 0) {
+      scene->meshes.push_back(std::move(mesh));
+      return absl::OkStatus();
+    }
+    // The file's own materials: one scene mesh per material its triangles use, holding the
+    // vertices its triangles index, in the file's material order.
+    std::vector<TriangleMesh> parts(raw.materials.size());
+    for (size_t t = 0; t < keptMaterials.size(); ++t) {
+      TriangleMesh& part = parts[keptMaterials[t]];
+      part.indices.insert(part.indices.end(), mesh.indices.begin() + 3 * t,
+                          mesh.indices.begin() + 3 * t + 3);
+    }
+    for (size_t m = 0; m < parts.size(); ++m) {
+      if (parts[m].indices.empty()) continue;
+      const job_internal::FileMaterial& fileMaterial = raw.materials[m];
+      parts[m].name = spec.name();
+      parts[m].material = uint32_t(scene->materials.size());
+      std::vector<uint32_t> remap(mesh.positions.size(), UINT32_MAX);
+      for (uint32_t& index : parts[m].indices) {
+        if (remap[index] == UINT32_MAX) {
+          remap[index] = uint32_t(parts[m].positions.size());
+          parts[m].positions.push_back(mesh.positions[index]);
+        }
+        index = remap[index];
+      }
+      scene->materials.push_back(
+          {path + ":" + fileMaterial.name, fileMaterial.albedo, fileMaterial.emission});
+      scene->meshes.push_back(std::move(parts[m]));
+    }
     return absl::OkStatus();
   }
 
@@ -425,8 +481,9 @@ absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource&
   MeshBuilder meshes(assets, limits);
   for (int i = 0; i < scene.meshes_size(); ++i) {
     const v1::Mesh& m = scene.meshes(i);
-    PB_RETURN_IF_ERROR(meshes.Add(m, Index("scene.meshes", i), materialIndex.at(m.material()),
-                                  canonical.mutable_meshes(i), &out));
+    const int64_t material = m.material().empty() ? -1 : int64_t(materialIndex.at(m.material()));
+    PB_RETURN_IF_ERROR(
+        meshes.Add(m, Index("scene.meshes", i), material, canonical.mutable_meshes(i), &out));
   }
   for (const v1::Light& l : scene.lights()) out.lights.push_back(BuildLight(l));
   PB_RETURN_IF_ERROR(CheckSceneSpan(out));

@@ -276,27 +276,6 @@ std::string GlbProblem(std::string_view bytes) {
 
 namespace {
 
-// A buffer outside the file: a uri that is not a data: URI. Assimp would open it through the file
-// system, which a bake never lets it do (a server must not open a path a request names:
-// docs/service.md).
-std::string ExternalBufferProblem(const google::protobuf::Value& root) {
-  const auto& fields = root.struct_value().fields();
-  const auto buffers = fields.find("buffers");
-  if (buffers == fields.end()) return "";
-  const auto& list = buffers->second.list_value().values();
-  for (int i = 0; i < list.size(); ++i) {
-    const auto& buffer = list[i].struct_value().fields();
-    const auto uri = buffer.find("uri");
-    if (uri == buffer.end() || uri->second.kind_case() != google::protobuf::Value::kStringValue)
-      continue;  // a GLB's own binary chunk, or malformed (assimp's to refuse)
-    const std::string& value = uri->second.string_value();
-    if (value.rfind("data:", 0) == 0) continue;
-    return "buffer " + std::to_string(i) + " is the separate file \"" + value.substr(0, 200) +
-           "\", and glTF buffers must be embedded: export glTF Binary (.glb) or embedded .gltf";
-  }
-  return "";
-}
-
 // A node graph that is not a forest: a child index out of range, a node with two parents (each
 // level doubling the scene: 22 levels took 2.7 GB before assimp was stopped), a cycle, or nesting
 // deeper than 1000.
@@ -433,7 +412,7 @@ std::string GltfProblem(std::string_view json) {
     return "its JSON nests deeper than " + std::to_string(kMaxNesting) + " levels";
   google::protobuf::Value root;
   if (!google::protobuf::util::JsonStringToMessage(std::string(json), &root).ok()) return "";
-  for (const auto check : {NodeProblem, ExternalBufferProblem, PrimitiveProblem}) {
+  for (const auto check : {NodeProblem, PrimitiveProblem}) {
     if (std::string problem = check(root); !problem.empty()) return problem;
   }
   return "";

@@ -8,14 +8,19 @@
 #include <assimp/IOSystem.hpp>
 #include <assimp/Importer.hpp>
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <exception>
+#include <map>
 #include <set>
 #include <utility>
 
 #include "assimp_warnings.h"
 #include "mesh_file_check.h"
+#include "probebake/base/log.h"
 #include "probebake/base/status.h"
+#include "probebake/job/file_refs.h"
 #include "text.h"
 
 namespace probebake::job_internal {
@@ -58,6 +63,90 @@ class NoFilesIOSystem : public Assimp::IOSystem {
   void Close(Assimp::IOStream* stream) override { delete stream; }
 };
 
+// The file system assimp sees while importing a model: the model's references, read through a
+// ReferenceReader (never by path), kept for the importer's lifetime and for the caller's digest.
+// The first reference that cannot be read is remembered: it, not assimp's own message, refuses the
+// file.
+class ReferenceIOSystem : public Assimp::IOSystem {
+ public:
+  explicit ReferenceIOSystem(ReferenceReader read) : readReference_(std::move(read)) {}
+
+  bool Exists(const char* path) const override { return Read(path) != nullptr; }
+  char getOsSeparator() const override { return '/'; }
+  Assimp::IOStream* Open(const char* path, const char* mode) override {
+    if (mode == nullptr || std::string_view(mode).find_first_of("wa+") != std::string_view::npos)
+      return nullptr;
+    const std::string* bytes = Read(path);
+    if (bytes == nullptr) return nullptr;
+    return new Assimp::MemoryIOStream(reinterpret_cast<const uint8_t*>(bytes->data()),
+                                      bytes->size(), /*own=*/false);
+  }
+  void Close(Assimp::IOStream* stream) override { delete stream; }
+
+  // Reads a reference assimp does not open itself (a texture path of a material).
+  const std::string* Read(const std::string& path) const {
+    const std::string key = NormalizeModelPath(path);
+    if (auto it = read_.find(key); it != read_.end()) return &it->second;
+    if (failed_.count(key) || !readReference_) return nullptr;
+    absl::StatusOr<std::string> bytes = readReference_(key);
+    if (!bytes.ok()) {
+      failed_.insert(key);
+      if (firstError_.ok()) firstError_ = bytes.status();
+      return nullptr;
+    }
+    return &read_.emplace(key, std::move(*bytes)).first->second;
+  }
+  const absl::Status& firstError() const { return firstError_; }
+  std::map<std::string, std::string> TakeRead() { return std::move(read_); }
+
+ private:
+  ReferenceReader readReference_;
+  mutable std::map<std::string, std::string> read_;
+  mutable std::set<std::string> failed_;
+  mutable absl::Status firstError_;
+};
+
+// The diffuse part of an assimp material: glTF metallic-roughness (base colour x (1 - metallic),
+// emissive factor x KHR_materials_emissive_strength), else the classic colours (an OBJ's Kd, Ke).
+// Albedo at or above 1 is clamped just below 1 (energy would grow without bound), with a warning.
+FileMaterial ReduceMaterial(const aiMaterial& material, const std::string& where) {
+  FileMaterial out;
+  aiString name;
+  if (material.Get(AI_MATKEY_NAME, name) == aiReturn_SUCCESS) out.name = name.C_Str();
+  aiColor4D base(1, 1, 1, 1);
+  aiColor3D diffuse(1, 1, 1), emissive(0, 0, 0);
+  float metallic = 0, strength = 1;
+  if (material.Get(AI_MATKEY_BASE_COLOR, base) == aiReturn_SUCCESS) {
+    if (material.Get(AI_MATKEY_METALLIC_FACTOR, metallic) != aiReturn_SUCCESS) metallic = 0;
+    const double dielectric = 1.0 - std::clamp(double(metallic), 0.0, 1.0);
+    out.albedo = Vec3d(base.r, base.g, base.b) * dielectric;
+  } else if (material.Get(AI_MATKEY_COLOR_DIFFUSE, diffuse) == aiReturn_SUCCESS) {
+    out.albedo = Vec3d(diffuse.r, diffuse.g, diffuse.b);
+  } else {
+    out.albedo = Vec3d(1, 1, 1);
+  }
+  if (material.Get(AI_MATKEY_COLOR_EMISSIVE, emissive) == aiReturn_SUCCESS) {
+    if (material.Get(AI_MATKEY_EMISSIVE_INTENSITY, strength) != aiReturn_SUCCESS) strength = 1;
+    out.emission = Vec3d(emissive.r, emissive.g, emissive.b) * double(strength);
+  }
+  // Negative or NaN factors are black; albedo 1 or more is clamped below 1.
+  constexpr double kBelowOne = 1.0 - 1.0 / (1 << 20);
+  bool clamped = false;
+  for (double* c : {&out.albedo.x, &out.albedo.y, &out.albedo.z}) {
+    if (!(*c >= 0)) *c = 0;
+    if (*c >= 1) {
+      *c = kBelowOne;
+      clamped = true;
+    }
+  }
+  for (double* c : {&out.emission.x, &out.emission.y, &out.emission.z})
+    if (!(*c >= 0) || !std::isfinite(*c)) *c = 0;
+  if (clamped)
+    Logger("job")->warn("{}: material {} has an albedo of 1 or more; clamped to {}", where,
+                        Quoted(out.name), kBelowOne);
+  return out;
+}
+
 // Whether an importer that lists `format` among its extensions reads `bytes`. When several
 // importers list an extension (glTF 1 and 2 both list gltf and glb), assimp asks them; when none
 // accepts, it tries every importer it has by signature (an STL file sent as gltf was read as
@@ -92,7 +181,8 @@ constexpr double kMaxPolygonWork = 1 << 26;
 
 absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::string& format,
                                         const std::string& name, const std::string& fieldPath,
-                                        int64_t trianglesBefore, int64_t maxTriangles) {
+                                        int64_t trianglesBefore, int64_t maxTriangles,
+                                        const ReferenceReader& readReference, bool fileMaterials) {
   const std::string what = Quoted(name);
   // Windows tools write OBJ files with a UTF-8 byte-order mark, which assimp's OBJ reader takes
   // for part of the first line (that vertex lost: "vertex index out of range").
@@ -110,7 +200,11 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
 
   const AssimpWarningCapture assimpWarnings;
   Assimp::Importer importer;
-  importer.SetIOHandler(new NoFilesIOSystem);  // the importer owns it
+  // Without the file's materials, an OBJ's only references (its .mtl files) are not read: a
+  // missing one is no error, as assimp's default material is not used either.
+  auto* references =
+      new ReferenceIOSystem(!fileMaterials && format == "obj" ? ReferenceReader() : readReference);
+  importer.SetIOHandler(references);  // the importer owns it
   // Points and lines are dropped entirely rather than kept as separate meshes.
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE,
                               aiPrimitiveType_POINT | aiPrimitiveType_LINE);
@@ -124,6 +218,7 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
   try {
     scene = importer.ReadFileFromMemory(bytes.data(), bytes.size(), aiProcess_ValidateDataStructure,
                                         format.c_str());
+    if (!references->firstError().ok()) return references->firstError();
     if (scene != nullptr && assimpWarnings.Saw("out-of-range indices")) {
       return FieldError(fieldPath, "cannot import " + what + " as " + format +
                                        ": some triangles index vertices past the end of their "
@@ -199,7 +294,36 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
     }
   }
 
+  // The texture maps of the materials the instances use (assimp records their paths; embedded
+  // images are "*<index>").
+  std::set<unsigned> materials;
+  for (const Instance& instance : instances) materials.insert(instance.mesh->mMaterialIndex);
+  for (const unsigned m : materials) {
+    if (!fileMaterials) break;
+    if (m >= scene->mNumMaterials || scene->mMaterials[m] == nullptr) continue;
+    const aiMaterial* material = scene->mMaterials[m];
+    for (const aiTextureType type : {aiTextureType_DIFFUSE, aiTextureType_BASE_COLOR,
+                                     aiTextureType_EMISSIVE, aiTextureType_OPACITY}) {
+      for (unsigned t = 0; t < material->GetTextureCount(type); ++t) {
+        aiString texture;
+        if (material->GetTexture(type, t, &texture) != aiReturn_SUCCESS) continue;
+        const std::string path(texture.C_Str());
+        if (path.empty() || path[0] == '*' || path.rfind("data:", 0) == 0) continue;
+        if (scene->GetEmbeddedTexture(path.c_str()) != nullptr) continue;
+        references->Read(path);
+      }
+    }
+  }
+  if (!references->firstError().ok()) return references->firstError();
+
   ImportedMesh out;
+  out.references = references->TakeRead();
+  std::map<unsigned, uint32_t> fileMaterial;  // assimp's material index -> out.materials
+  for (const unsigned m : materials) {
+    if (m >= scene->mNumMaterials || scene->mMaterials[m] == nullptr) continue;
+    fileMaterial.emplace(m, uint32_t(out.materials.size()));
+    out.materials.push_back(ReduceMaterial(*scene->mMaterials[m], fieldPath));
+  }
   for (const Instance& instance : instances) {
     const aiMesh* mesh = instance.mesh;
     const size_t base = out.positions.size();
@@ -222,6 +346,12 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
         }
         out.indices.push_back(uint32_t(base + face.mIndices[k]));
       }
+      auto material = fileMaterial.find(mesh->mMaterialIndex);
+      if (material == fileMaterial.end()) {  // a material index past the file's materials
+        material = fileMaterial.emplace(mesh->mMaterialIndex, uint32_t(out.materials.size())).first;
+        out.materials.push_back({"(missing)", Vec3d(0.5, 0.5, 0.5), Vec3d()});
+      }
+      out.triangleMaterials.push_back(material->second);
     }
   }
   if (out.indices.empty()) return FieldError(fieldPath, what + " contains no triangles");

@@ -286,6 +286,17 @@ class Validator {
         }
       }
     }
+    if (mesh.references_size() > 0 && !hasBlob) {
+      errors_.Add(path + ".references",
+                  "only used with blob (a file's references are read beside it)");
+    }
+    for (const auto& [modelPath, digest] : mesh.references()) {
+      const std::string field = path + ".references[" + Quoted(modelPath) + "]";
+      if (modelPath.empty() || modelPath != NormalizeModelPath(modelPath))
+        errors_.Add(field, "not a normalized path (expected " +
+                               Quoted(NormalizeModelPath(modelPath)) + ")");
+      BlobDigest(digest, field);
+    }
     if (hasBlob) {
       BlobDigest(mesh.blob(), path + ".blob");
       if (mesh.format().empty())
@@ -324,7 +335,9 @@ class Validator {
     }
 
     if (mesh.material().empty()) {
-      errors_.Add(path + ".material", "missing (the name of a material in scene.materials)");
+      // A model file brings its own materials; inline triangles have none.
+      if (hasInline)
+        errors_.Add(path + ".material", "missing (the name of a material in scene.materials)");
     } else if (!materialIndex.contains(mesh.material())) {
       errors_.Add(path + ".material", "unknown material " + Quoted(mesh.material()));
     }

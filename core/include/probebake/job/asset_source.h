@@ -31,6 +31,13 @@ class AssetSource {
   // referencing field ("scene.meshes[0].blob"), for error messages.
   virtual absl::StatusOr<std::string> ReadBlob(const v1::Digest& digest,
                                                const std::string& fieldPath) const = 0;
+
+  // The bytes of the file `modelPath` (normalized: NormalizeModelPath) that the model file
+  // `modelFile` (relative to the job file) references, relative to the model's folder.
+  // Only local bakes read files: a server's source refuses (INVALID_ARGUMENT).
+  virtual absl::StatusOr<std::string> ReadReferencedFile(const std::string& modelFile,
+                                                         const std::string& modelPath,
+                                                         const std::string& fieldPath) const = 0;
 };
 
 // Reads files relative to the job file's folder, and optionally blobs from a folder holding each
@@ -51,6 +58,12 @@ class LocalAssetSource final : public AssetSource {
   // blob folder or the content does not match the digest.
   absl::StatusOr<std::string> ReadBlob(const v1::Digest& digest,
                                        const std::string& fieldPath) const override;
+  // INVALID_ARGUMENT naming the field, the model and `modelPath` when the path is absolute, has a
+  // scheme ("http:", "C:"), leads out of the job file's folder lexically or through a symlink, or
+  // the file is missing, not regular, unreadable or too large.
+  absl::StatusOr<std::string> ReadReferencedFile(const std::string& modelFile,
+                                                 const std::string& modelPath,
+                                                 const std::string& fieldPath) const override;
 
  private:
   std::string jobFileDir_;

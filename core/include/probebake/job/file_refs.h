@@ -4,6 +4,7 @@
 // computed with every file reference replaced by the digest of its content.
 #pragma once
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -49,5 +50,19 @@ bool IsMeshFormat(std::string_view format);
 // The format of a mesh: its `format` lowercased when given, else its file's extension lowercased
 // (no dot); nullopt when neither names a mesh format.
 std::optional<std::string> MeshFormatOf(const v1::Mesh& mesh);
+
+// The key of a file a model references (a glTF buffer or image uri, an OBJ mtllib or texture
+// map): '\\' read as '/', "." and "a/.." segments removed, as std::filesystem's lexically_normal.
+// The same on the CLI, a local bake and the server, so mesh.references keys match what assimp asks.
+std::string NormalizeModelPath(std::string_view modelPath);
+
+// The files a model of `format` may reference, normalized, sorted, without duplicates: a glTF's
+// (or GLB's JSON chunk's) buffers[].uri and images[].uri that are not data: URIs, an OBJ's mtllib
+// files and their map_Kd, map_Ke and map_d textures (`readReference` reads an .mtl; nullopt when
+// it cannot, which lists no textures of it). A superset of what an import reads: the CLI uploads
+// these, the importer opens what it needs. Never fails: unparsable bytes list nothing.
+std::vector<std::string> ListModelReferences(
+    std::string_view bytes, std::string_view format,
+    const std::function<std::optional<std::string>(const std::string&)>& readReference);
 
 }  // namespace probebake
