@@ -6,7 +6,9 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <ostream>
 #include <thread>
@@ -459,6 +461,68 @@ TEST(VdbIo, GridNames) {
   EXPECT_EQ(RadianceGridName(8), "radiance_sh_08");
   EXPECT_EQ(RadianceGridName(80), "radiance_sh_80");
   EXPECT_EQ(IrradianceGridName(99), "irradiance_sh_99");
+}
+
+}  // namespace
+}  // namespace probebake
+
+namespace probebake {
+namespace {
+
+// The file with the 4 bytes at `at` replaced by `value` (little-endian).
+void Patch(const std::string& path, size_t at, uint32_t value) {
+  std::fstream f(path, std::ios::in | std::ios::out | std::ios::binary);
+  f.seekp(std::streamoff(at));
+  const unsigned char bytes[4] = {uint8_t(value), uint8_t(value >> 8), uint8_t(value >> 16),
+                                  uint8_t(value >> 24)};
+  f.write(reinterpret_cast<const char*>(bytes), 4);
+}
+
+// The offset of the first length-prefixed string `s` in the file (its length field).
+size_t FindString(const std::string& path, const std::string& s) {
+  std::ifstream in(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::string needle(4, '\0');
+  for (int i = 0; i < 4; ++i) needle[size_t(i)] = char(uint8_t(s.size() >> (8 * i)));
+  const size_t at = bytes.find(needle + s);
+  EXPECT_NE(at, std::string::npos) << s;
+  return at;
+}
+
+// OpenVDB sizes strings by the lengths a file declares and fills them before reading: a damaged
+// length must be refused by the walk before OpenVDB sees it (found by volume_read_fuzz: minutes
+// spent zeroing gigabytes for a 100 kB file). Each damage is named, and fast.
+TEST(VdbIo, DeclaredLengthsPastTheFileAreRefusedBeforeOpenVdbReadsThem) {
+  TempDir dir;
+  const std::string good = dir.File("good.vdb");
+  PB_ASSERT_OK(WriteProbeVolume(good, MakeTestVolume(TestVolumeSpec{}), MakeTestMetadata()));
+  const auto damaged = [&](const std::string& name, size_t at, uint32_t value) {
+    const std::string path = dir.File(name);
+    std::filesystem::copy_file(good, path);
+    Patch(path, at, value);
+    return ReadProbeVolume(path).status();
+  };
+  // Header: magic 8, versions 12, offsets flag 1, UUID 36; then the metadata count and the first
+  // entry's name length.
+  constexpr size_t kMetaCount = 8 + 12 + 1 + 36;
+  const absl::Status count = damaged("count.vdb", kMetaCount, 0x7fffffff);
+  EXPECT_EQ(count.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(count.message().find("file metadata declares 2147483647 entries"),
+            absl::string_view::npos)
+      << count;
+  const absl::Status name = damaged("name.vdb", kMetaCount + 4, 0xfffffff0);
+  EXPECT_NE(name.message().find("file metadata entry 0's name declares 4294967280 bytes"),
+            absl::string_view::npos)
+      << name;
+  // The validity grid's descriptor: its type string follows its name.
+  const size_t validity = FindString(good, "validity");
+  const absl::Status type = damaged("type.vdb", validity + 4 + 8, 0x40000000);
+  EXPECT_NE(type.message().find("grid \"validity\"'s type declares 1073741824 bytes"),
+            absl::string_view::npos)
+      << type;
+  EXPECT_NE(type.message().find(dir.File("type.vdb")), absl::string_view::npos) << type;
+  // And the untouched file still reads.
+  EXPECT_TRUE(ReadProbeVolume(good).ok());
 }
 
 }  // namespace

@@ -22,6 +22,7 @@
 #include "probebake/volume/visibility_map.h"
 #include "probebake/volume/volume_inspect.h"
 #include "proto_json.h"
+#include "vdb_file_walk.h"
 #include "vdb_format.h"
 
 namespace probebake {
@@ -83,6 +84,8 @@ bool FileExists(const std::string& path) {
 // An open OpenVDB file; errors name the path.
 absl::StatusOr<std::unique_ptr<vdb::io::File>> OpenFile(const std::string& path) {
   if (!FileExists(path)) return absl::NotFoundError(path + ": no such file");
+  if (const std::string problem = VdbFileProblem(path); !problem.empty())
+    return absl::InvalidArgumentError(path + ": not a readable OpenVDB file: " + problem);
   InitializeOpenVdbOnce();
   auto file = std::make_unique<vdb::io::File>(path);
   try {
