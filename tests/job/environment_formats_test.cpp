@@ -287,6 +287,28 @@ TEST(EnvironmentFormats, BadCubeMapsNameTheField) {
                             "scene.environment.map.file", "cannot read \"text.hdr\" as Radiance"));
 }
 
+// A run-length .hdr cut short inside its scanlines made stb_image loop for ever (it reads bytes
+// past the end as zero-length runs): refused, and at once. Cut at every point of the data, so
+// each kind of field (scanline header, run, literal) is the one cut somewhere.
+TEST(EnvironmentFormats, ARadianceFileCutShortInItsScanlinesIsRefused) {
+  TempDir dir;
+  Pixels p{16, 4, std::vector<float>(16 * 4 * 3)};
+  for (size_t i = 0; i < p.rgb.size(); ++i) p.rgb[i] = float(i % 7) * 0.25f;  // runs and literals
+  WriteHdr(dir, "whole.hdr", p);
+  ASSERT_TRUE(BuildEnvJob(dir, R"({"file": "whole.hdr"})").ok());
+  const std::string whole = ReadText(dir.File("whole.hdr"));
+  const size_t data = whole.find("+X 16\n") + 6;
+  ASSERT_LT(data, whole.size());
+  for (size_t end = data; end < whole.size(); ++end) {
+    dir.Write("cut.hdr", whole.substr(0, end));
+    EXPECT_TRUE(HasFieldError(BuildEnvJob(dir, R"({"file": "cut.hdr"})").status(),
+                              "scene.environment.map.file",
+                              "cannot read \"cut.hdr\" as Radiance HDR: its pixel data is cut "
+                              "short"))
+        << "cut at " << end << " of " << whole.size();
+  }
+}
+
 TEST(EnvironmentFormats, FacesUploadAsBlobsWithTheSameDigests) {
   TempDir dir, blobs;
   const Pixels strip = CubeStrip(4, [](const Vec3d& d) { return Vec3d(1 + d.x, 1, 1); });

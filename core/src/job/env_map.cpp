@@ -8,6 +8,7 @@
 #include <OpenEXR/ImfInputFile.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <memory>
@@ -143,6 +144,57 @@ std::string ExrHeaderProblem(std::string_view bytes) {
   }
 }
 
+// stb_image's Radiance decoder reads a byte past the end as 0, and a run-length scanline whose
+// data ends early then reads zero-length runs for ever (found by env_image_fuzz: a 143-byte file
+// never returned). The scanlines are walked first: "" when every one fits in the file (or the
+// header is one stb_image refuses itself), else what is cut short.
+std::string RadianceDataProblem(std::string_view bytes) {
+  const size_t headerEnd = bytes.find("\n\n");
+  if (headerEnd == std::string_view::npos) return "";
+  const size_t lineEnd = bytes.find('\n', headerEnd + 2);
+  if (lineEnd == std::string_view::npos) return "";
+  long height = 0, width = 0;
+  const std::string resolution(bytes.substr(headerEnd + 2, lineEnd - headerEnd - 2));
+  if (std::sscanf(resolution.c_str(), "-Y %ld +X %ld", &height, &width) != 2 || height < 1 ||
+      width < 1 || height > (1 << 24) || width > (1 << 24)) {
+    return "";  // stb_image names the fault
+  }
+  size_t at = lineEnd + 1;
+  const auto left = [&] { return bytes.size() - at; };
+  const std::string cut = "its pixel data is cut short";
+  const uint64_t flatBytes = 4 * uint64_t(width) * uint64_t(height);
+  // Flat (not run-length) pixels: 4 bytes each, from here to the end of the image.
+  if (width < 8 || width >= 32768) return flatBytes <= left() ? "" : cut;
+  for (long row = 0; row < height; ++row) {
+    if (left() < 4) return cut;
+    const auto c1 = uint8_t(bytes[at]), c2 = uint8_t(bytes[at + 1]), hi = uint8_t(bytes[at + 2]);
+    if (c1 != 2 || c2 != 2 || (hi & 0x80)) {
+      // stb_image reads the whole image flat from here, these 4 bytes its first pixel.
+      return flatBytes <= left() ? "" : cut;
+    }
+    if (((long(hi) << 8) | uint8_t(bytes[at + 3])) != width) return "";  // stb_image refuses it
+    at += 4;
+    for (int channel = 0; channel < 4; ++channel) {
+      for (long x = 0; x < width;) {
+        if (left() < 1) return cut;
+        long count = uint8_t(bytes[at++]);
+        if (count > 128) {  // a run: one value
+          if (left() < 1) return cut;
+          ++at;
+          count -= 128;
+        } else {                             // literal values
+          if (count > width - x) return "";  // stb_image refuses it
+          if (uint64_t(count) > left()) return cut;
+          at += size_t(count);
+        }
+        if (count > width - x) return "";
+        x += count;
+      }
+    }
+  }
+  return "";
+}
+
 absl::Status CheckSize(int64_t width, int64_t height, int64_t maxPixels, const std::string& what,
                        const std::string& fieldPath) {
   if (width < 1 || height < 1) return FieldError(fieldPath, what + " has no pixels");
@@ -164,6 +216,8 @@ absl::Status DecodeRadianceHdr(std::string_view bytes, const std::string& what,
                                      " as Radiance HDR: " + std::string(stbi_failure_reason()));
   }
   PB_RETURN_IF_ERROR(CheckSize(width, height, maxPixels, what, fieldPath));
+  if (const std::string problem = RadianceDataProblem(bytes); !problem.empty())
+    return FieldError(fieldPath, "cannot read " + what + " as Radiance HDR: " + problem);
   std::unique_ptr<float, void (*)(void*)> pixels(
       stbi_loadf_from_memory(data, int(bytes.size()), &width, &height, &channels, 3),
       stbi_image_free);
