@@ -239,8 +239,9 @@ TEST(EndToEnd, AGltfWithExternalFilesBakesTheSameThroughTheServerAndUploadsEachF
   RunResult local = Cli({"bake", job.string(), "-o", (dir.path() / "local.vdb").string()});
   ASSERT_EQ(local.exitCode, 0) << local.err;
   ServerProcess server(dir.path(), {"--threads", "1"});
-  RunResult submit = Cli({"submit", job.string(), "--server", server.address(), "--wait", "-o",
-                          (dir.path() / "server.vdb").string()});
+  // The upload summary is an info line.
+  RunResult submit = Cli({"--log-level", "info", "submit", job.string(), "--server",
+                          server.address(), "--wait", "-o", (dir.path() / "server.vdb").string()});
   ASSERT_EQ(submit.exitCode, 0) << submit.err << server.log();
   ExpectSameVolume(dir.path() / "local.vdb", dir.path() / "server.vdb");
   EXPECT_NE(submit.err.find("4 file(s): 4 uploaded"), std::string::npos) << submit.err;
