@@ -1,4 +1,5 @@
-// An AssetSource over bytes in memory, for fuzz targets: every file and blob reads as `bytes`.
+// An AssetSource over bytes in memory, for fuzz targets: every file, blob and file a model
+// references reads as `bytes` (so a model's .mtl or external buffer is fuzzed input too).
 #pragma once
 
 #include <string>
@@ -14,6 +15,10 @@ class MemoryAssetSource final : public AssetSource {
     return bytes_;
   }
   absl::StatusOr<std::string> ReadBlob(const v1::Digest&, const std::string&) const override {
+    return bytes_;
+  }
+  absl::StatusOr<std::string> ReadReferencedFile(const std::string&, const std::string&,
+                                                 const std::string&) const override {
     return bytes_;
   }
 
