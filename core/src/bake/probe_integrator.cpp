@@ -195,14 +195,14 @@ struct ShadowRays {
   }
 };
 
-// Traces rays->count shadow rays: as packets of rays sorted by key (keys below `buckets`), or,
-// in groups of one, the one ray alone. sharedOrigin: every ray starts at origin[0].
 template <int kWidth>
 [[gnu::noinline, gnu::cold]] void ReportShadowRays(RayObserver* observer, int traced,
                                                    bool sharedOrigin,
                                                    const ShadowRays<kWidth>& rays);
 
-// Tells `observer` (when not null) of the rays once traced.
+// Traces rays->count shadow rays: as packets of rays sorted by key (keys below `buckets`), or,
+// in groups of one, the one ray alone. sharedOrigin: every ray starts at origin[0]. Tells
+// `observer` (when not null) of the rays once traced.
 template <int kWidth>
 void TraceShadowRays(const TracerScene& tracer, int buckets, bool sharedOrigin,
                      ShadowRays<kWidth>* rays, RayObserver* observer) {
@@ -271,13 +271,10 @@ void ReportShadowRays(RayObserver* observer, int traced, bool sharedOrigin,
 // along dirs[k], k < n: as packets in this order, or, in groups of one, the one ray alone.
 // Tells `observer` (when not null) of the rays once traced, as rays of `kind`.
 template <int kWidth>
-void IntersectRays(const TracerScene& tracer, std::span<const Vec3f> origins, const Vec3d* dirs,
-                   int n, SurfaceHit* hits, bool* found, RayKind kind, RayObserver* observer) {
-  if (observer) {
-    IntersectRays<kWidth>(tracer, origins, dirs, n, hits, found, kind, nullptr);
-    ReportIntersections(observer, kind, kWidth > 1, origins, dirs, n, hits, found);
-    return;
-  }
+[[gnu::always_inline]] inline void IntersectRays(const TracerScene& tracer,
+                                                 std::span<const Vec3f> origins, const Vec3d* dirs,
+                                                 int n, SurfaceHit* hits, bool* found, RayKind kind,
+                                                 RayObserver* observer) {
   if constexpr (kWidth == 1) {
     if (n > 0) found[0] = tracer.Intersect(origins[0], dirs[0], kInf, &hits[0]);
   } else {
@@ -289,6 +286,7 @@ void IntersectRays(const TracerScene& tracer, std::span<const Vec3f> origins, co
                              std::span<const Vec3d>(dirs + k, m), hits + k, found + k);
     }
   }
+  if (observer) ReportIntersections(observer, kind, kWidth > 1, origins, dirs, n, hits, found);
 }
 
 // A path between two waves.
