@@ -8,7 +8,8 @@
 // Bakes every scene (bench_scenes.h) at a ladder of sample counts for several estimator
 // configurations, adaptive targets and the quality presets, at one thread each (so time measures
 // work, not scheduling), compares each bake with a reference (bench_reference.h), measures raw
-// Embree on the same rays (bench_raw_embree.h), 1- vs 2-thread scaling, and the peak memory of a
+// Embree on the same probes' rays (bench_raw_embree.h) and on the rays the tracer itself casts,
+// recorded and replayed (bench_ray_replay.h), 1- vs 2-thread scaling, and the peak memory of a
 // dense 128^3 order-2 bake in a child process, then writes the reports (bench_report.h). A full
 // run into the source tree also rewrites the figures README.md and docs/accuracy-and-speed.md
 // embed; --docs-only rewrites them from the committed results.json alone.
