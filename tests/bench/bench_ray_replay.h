@@ -84,7 +84,7 @@ struct ReplayRate {
 };
 
 // The rays of `rays` that were cast, as Embree received them, replayed through an Embree scene
-// of `scene` built as the tracer builds it (offset: the tracer's local origin, LocalOrigin).
+// of `scene` built as the tracer builds it, in its local coordinates (LocalOrigin).
 class RayReplay {
  public:
   static absl::StatusOr<RayReplay> Build(const Scene& scene, std::span<const ObservedRay> rays);
