@@ -3,12 +3,13 @@
 //
 //   probebake-bench [--quick] [--out DIR] [--cache DIR] [--work DIR] [--source DIR]
 //                   [--repeats N] [--scenes a,b] [--no-memory] [--no-embree] [--scaling-only]
-//                   [--docs-only]
+//                   [--replay-only] [--docs-only]
 //
 // Bakes every scene (bench_scenes.h) at a ladder of sample counts for several estimator
 // configurations, adaptive targets and the quality presets, at one thread each (so time measures
 // work, not scheduling), compares each bake with a reference (bench_reference.h), measures raw
-// Embree on the same rays (bench_raw_embree.h), 1- vs 2-thread scaling, and the peak memory of a
+// Embree on the same probes' rays (bench_raw_embree.h) and on the rays the tracer itself casts,
+// recorded and replayed (bench_ray_replay.h), 1- vs 2-thread scaling, and the peak memory of a
 // dense 128^3 order-2 bake in a child process, then writes the reports (bench_report.h). A full
 // run into the source tree also rewrites the figures README.md and docs/accuracy-and-speed.md
 // embed; --docs-only rewrites them from the committed results.json alone.
@@ -29,6 +30,7 @@
 
 #include "bench_metrics.h"
 #include "bench_raw_embree.h"
+#include "bench_ray_replay.h"
 #include "bench_reference.h"
 #include "bench_report.h"
 #include "bench_scenes.h"
@@ -67,6 +69,9 @@ constexpr int kReferenceBatches = 64;
 // Paired tracer / raw Embree readings per scene (ThroughputInfo::pairedFractions). Seven, so
 // that their median holds when a load spike hits up to three of them.
 constexpr int kThroughputPairs = 7;
+// The replay's section holds about this many probes (ReplayInfo), and is read in this many pairs.
+constexpr int64_t kReplayProbes = 16;
+constexpr int kReplayPairs = 5;
 
 struct Options {
   bool quick = false;
@@ -75,6 +80,9 @@ struct Options {
   std::vector<std::string> scenes;
   bool memory = true, embree = true;
   bool scalingOnly = false;  // only the 1- vs 2-thread scaling (for a quiet moment)
+  // Only the tracer against raw Embree (the probe-ray pairs and the replay of the tracer's own
+  // rays) at the throughput bake's settings, reported in <out>/replay.md.
+  bool replayOnly = false;
   // Rebuild the documents' generated blocks from <out>/results.json; no bake.
   bool docsOnly = false;
   // The reports go to the source's tests/bench/results: the documents embedding their figures
@@ -365,6 +373,114 @@ MemoryInfo MeasureMemory(const Options& opt, int n, int64_t spp) {
   return info;
 }
 
+// The tracer against raw Embree on its own rays (bench_ray_replay.h): `job` (the throughput
+// bake's settings) baked at 1 thread once with a RayRecorder on a section of about
+// kReplayProbes of its `activeProbes` probes, then `pairs` times a SectionTimer bake followed by
+// the replay of the recorded rays, both on one CPU; then each kind's rates alone.
+absl::Status MeasureReplay(const BakeJob& job, int64_t activeProbes, bool quick, int pairs,
+                           ReplayInfo* out) {
+  auto log = Logger("bench");
+  BakeOptions options;
+  options.threads = 1;
+  BakeSection section{uint64_t(std::max<int64_t>(1, activeProbes / kReplayProbes))};
+  std::unique_ptr<RayRecorder> recorder;
+  for (;;) {
+    recorder = std::make_unique<RayRecorder>(section);
+    options.rayObserver = recorder.get();
+    PB_RETURN_IF_ERROR(Bake(job, options).status());
+    if (!recorder->rays().empty() || section.stride == 1) break;
+    section.stride = 1;  // no probe's key fell in the section: take them all
+  }
+  out->stride = section.stride;
+  out->calls = recorder->calls();
+  for (int k = 0; k < kRayKinds; ++k) {
+    out->rays[k] = recorder->Count(RayKind(k), false);
+    out->cast[k] = recorder->Count(RayKind(k), true);
+  }
+  for (const ObservedRay& r : recorder->rays()) out->packed += r.cast && r.packed;
+  PB_ASSIGN_OR_RETURN(const RayReplay replay, RayReplay::Build(job.scene, recorder->rays()));
+  recorder.reset();
+  const double minSeconds = quick ? 0.05 : 0.2;
+  for (int k = 0; k < pairs; ++k) {
+    const CpuPin pin;
+    SectionTimer timer(section);
+    options.rayObserver = &timer;
+    PB_RETURN_IF_ERROR(Bake(job, options).status());
+    const double tracer = double(out->CastRays()) / timer.cpuSeconds() * 1e-6;
+    const ReplayRate single = replay.Measure("single", nullptr, minSeconds, 3);
+    const ReplayRate packet = replay.Measure("packet8", nullptr, minSeconds, 3);
+    const double best = std::max(single.cpuMraysPerSecond, packet.cpuMraysPerSecond);
+    log->info(
+        "replay pair {} on CPU {}: tracer {:.3g} Mrays/CPU-s ({} calls, {:.3f} s), replay single "
+        "{:.3g}, packet8 {:.3g}: fraction {:.2f}",
+        k, pin.cpu(), tracer, timer.calls(), timer.cpuSeconds(), single.cpuMraysPerSecond,
+        packet.cpuMraysPerSecond, tracer / best);
+    out->tracerMrays.push_back(tracer);
+    out->singleMrays.push_back(single.cpuMraysPerSecond);
+    out->packetMrays.push_back(packet.cpuMraysPerSecond);
+    out->fractions.push_back(tracer / best);
+    out->cpus.push_back(pin.cpu());
+  }
+  for (const char* api : {"single", "packet8"}) {
+    for (int k = 0; k < kRayKinds; ++k) {
+      const RayKind kind = RayKind(k);
+      out->rates.push_back(replay.Measure(api, &kind, minSeconds, 3));
+    }
+  }
+  out->measured = true;
+  return absl::OkStatus();
+}
+
+// --replay-only: for every scene, the probe-ray pairs of the throughput section (today's
+// coherent figure) and MeasureReplay, at the throughput bake's settings; written to
+// <out>/replay.md (ReplayMarkdown).
+absl::Status RunReplayOnly(const Options& opt) {
+  auto log = Logger("bench");
+  BenchResults results;
+  results.quick = opt.quick;
+  results.loadStart = LoadAverage1();
+  PB_ASSIGN_OR_RETURN(const std::vector<BenchScene> scenes,
+                      PrepareScenes(opt.source, opt.work, opt.quick));
+  const int64_t spp = opt.quick ? 256 : 4096;  // the ladder's largest, as in Run
+  for (const BenchScene& scene : scenes) {
+    if (!opt.scenes.empty() &&
+        std::find(opt.scenes.begin(), opt.scenes.end(), scene.name) == opt.scenes.end())
+      continue;
+    v1::BakeSettings s = BaseSettings();
+    s.set_samples_per_probe(spp);
+    PB_ASSIGN_OR_RETURN(const BakeJob job, BuildSceneJob(scene, s));
+    ThroughputInfo tp;
+    tp.scene = scene.name;
+    PB_ASSIGN_OR_RETURN(const Timed t, TimedBake(job, 1, 1));
+    tp.rays = t.volume.stats.rays;
+    tp.samples = t.volume.stats.samples;
+    std::vector<Vec3d> probes;
+    for (int64_t p = 0; p < job.grid.ProbeCount(); ++p) {
+      if (!t.volume.active[p]) continue;
+      int i, j, k;
+      job.grid.Coords(p, &i, &j, &k);
+      probes.push_back(job.grid.Position(i, j, k));
+    }
+    for (int k = 0; k < 3; ++k) {
+      const CpuPin pin;
+      PB_ASSIGN_OR_RETURN(const Timed b, TimedBake(job, 1, 1));
+      PB_ASSIGN_OR_RETURN(const RawRate rate,
+                          MeasureRawProbeRate(job, probes, opt.quick ? 0.05 : 0.25, 3));
+      tp.pairedFractions.push_back(double(b.volume.stats.rays) / b.cpu * 1e-6 /
+                                   rate.cpuMraysPerSecond);
+      tp.pairedCpus.push_back(pin.cpu());
+    }
+    log->info("{}: replay of the tracer's own rays", scene.name);
+    PB_RETURN_IF_ERROR(
+        MeasureReplay(job, int64_t(probes.size()), opt.quick, kReplayPairs, &tp.replay));
+    results.throughput.push_back(std::move(tp));
+  }
+  results.loadEnd = LoadAverage1();
+  const std::string md = ReplayMarkdown(results);
+  std::printf("%s", md.c_str());
+  return WriteFileAtomic(opt.out + "/replay.md", md);
+}
+
 // ---- the run ----
 
 std::string DefaultCacheDir() {
@@ -557,6 +673,9 @@ absl::Status Run(const Options& opt) {
         tp.pairedFractions.push_back(tracerMrays / rate.cpuMraysPerSecond);
         tp.pairedCpus.push_back(pin.cpu());
       }
+      log->info("{}: replay of the tracer's own rays", scene.name);
+      PB_RETURN_IF_ERROR(MeasureReplay(job, int64_t(probes.size()), opt.quick,
+                                       opt.quick ? 2 : kReplayPairs, &tp.replay));
       results.throughput.push_back(std::move(tp));
     }
   }
@@ -721,7 +840,7 @@ int Usage() {
   std::fprintf(stderr,
                "usage: probebake-bench [--quick] [--out DIR] [--cache DIR] [--work DIR] "
                "[--source DIR] [--repeats N] [--scenes a,b] [--no-memory] [--no-embree] "
-               "[--scaling-only] [--docs-only]\n");
+               "[--scaling-only] [--replay-only] [--docs-only]\n");
   return 2;
 }
 
@@ -760,6 +879,8 @@ int main(int argc, char** argv) {
       opt.embree = false;
     } else if (a == "--scaling-only") {
       opt.scalingOnly = true;
+    } else if (a == "--replay-only") {
+      opt.replayOnly = true;
     } else if (a == "--docs-only") {
       opt.docsOnly = true;
     } else {
@@ -770,6 +891,7 @@ int main(int argc, char** argv) {
   // Quick runs are smoke checks: their reports stay in the work folder, not in the committed
   // results.
   if (opt.out.empty() && opt.scalingOnly) opt.out = opt.work + "/scaling-results";
+  if (opt.out.empty() && opt.replayOnly) opt.out = opt.work + "/replay-results";
   if (opt.out.empty()) {
     opt.committedResults = !opt.quick && !opt.scalingOnly;
     opt.out = opt.quick ? opt.work + "/quick-results" : opt.source + "/tests/bench/results";
@@ -781,7 +903,9 @@ int main(int argc, char** argv) {
   // The baker logs every bake at info; the benchmark's own lines are what matter here.
   probebake::Logger("bake")->set_level(spdlog::level::warn);
   probebake::Logger("job")->set_level(spdlog::level::warn);
-  const absl::Status status = opt.docsOnly ? UpdateDocumentsFromJson(opt) : Run(opt);
+  const absl::Status status = opt.docsOnly     ? UpdateDocumentsFromJson(opt)
+                              : opt.replayOnly ? RunReplayOnly(opt)
+                                               : Run(opt);
   if (!status.ok()) {
     std::fprintf(stderr, "probebake-bench: %s\n", std::string(status.message()).c_str());
     return 1;

@@ -716,6 +716,8 @@ std::string Markdown(const BenchResults& r) {
     }
   }
 
+  md += ReplayMarkdown(r);
+
   md += "\n## Scaling\n\n";
   if (const std::optional<ScalingBest> best = BestOf(r.scaling)) {
     const ScalingInfo& sc = r.scaling;
@@ -962,7 +964,29 @@ std::string Json(const BenchResults& r) {
           k ? ", " : "", JsonString(rr.rays).c_str(), JsonString(rr.api).c_str(), rr.threads,
           JsonNumber(rr.wallMraysPerSecond).c_str(), JsonNumber(rr.cpuMraysPerSecond).c_str());
     }
-    j += Format("]}%s\n", i + 1 < r.throughput.size() ? "," : "");
+    j += "]";
+    if (const ReplayInfo& rp = tp.replay; rp.measured) {
+      j += Format(", \"replay\": {\"stride\": %llu, \"calls\": %lld", (unsigned long long)rp.stride,
+                  (long long)rp.calls);
+      for (int k = 0; k < kRayKinds; ++k)
+        j += Format(", \"%s\": {\"rays\": %lld, \"cast\": %lld}", RayKindName(RayKind(k)),
+                    (long long)rp.rays[k], (long long)rp.cast[k]);
+      j += Format(
+          ", \"packed\": %lld, \"tracerMrays\": [%s], \"singleMrays\": [%s], \"packetMrays\": "
+          "[%s], \"fractions\": [%s], \"cpus\": [%s], \"rates\": [",
+          (long long)rp.packed, JoinNumbers(rp.tracerMrays).c_str(),
+          JoinNumbers(rp.singleMrays).c_str(), JoinNumbers(rp.packetMrays).c_str(),
+          JoinNumbers(rp.fractions).c_str(),
+          JoinNumbers(std::vector<double>(rp.cpus.begin(), rp.cpus.end())).c_str());
+      for (size_t k = 0; k < rp.rates.size(); ++k) {
+        const ReplayRate& rr = rp.rates[k];
+        j += Format("%s{\"rays\": %s, \"api\": %s, \"count\": %lld, \"cpuMrays\": %s}",
+                    k ? ", " : "", JsonString(rr.rays).c_str(), JsonString(rr.api).c_str(),
+                    (long long)rr.count, JsonNumber(rr.cpuMraysPerSecond).c_str());
+      }
+      j += "]}";
+    }
+    j += Format("}%s\n", i + 1 < r.throughput.size() ? "," : "");
   }
   j += "  ],\n";
   const ScalingInfo& sc = r.scaling;
@@ -1155,11 +1179,81 @@ std::string HonestyBlock(const BenchResults& r) {
   return md;
 }
 
+}  // namespace
+
+std::string ReplayMarkdown(const BenchResults& r) {
+  bool any = false;
+  for (const ThroughputInfo& tp : r.throughput) any = any || tp.replay.measured;
+  if (!any) return "";
+  std::string md =
+      "\n## Throughput against Embree on the tracer's own rays\n\nA section of the default "
+      "bake (1 thread; the probes whose key falls in 1 of `stride`, every batch) recorded ray by "
+      "ray as the tracer casts it (probe, bounce and shadow rays, in cast order), then replayed "
+      "through raw Embree on the same scene: one by one (rtcIntersect1 / rtcOccluded1, \"single\") "
+      "and in 8-wide packets of consecutive rays of one kind (rtcIntersect8 / rtcOccluded8, "
+      "\"packet8\"). \"Fraction\": the tracer's cast rays per CPU second in the same section "
+      "(measured in a bake that records nothing) over the better replay's; pairs of the two on one "
+      "CPU, median (range). 1 would be a tracer that costs nothing but its Embree calls; the rest "
+      "is shading, sampling and bookkeeping. \"Probe-ray fraction\": the earlier figure, the "
+      "whole bake against rtcIntersect1 on coherent rays from the probes (pairs, median).\n\n"
+      "| scene | section: stride, calls | rays probe / bounce / shadow (not cast) | cast in "
+      "packets | tracer Mrays/CPU-s | replay single | replay packet8 | fraction of the best replay "
+      "| probe-ray fraction |\n|---|---|---|---|---|---|---|---|---|\n";
+  for (const ThroughputInfo& tp : r.throughput) {
+    const ReplayInfo& rp = tp.replay;
+    if (!rp.measured) continue;
+    const int64_t notCast =
+        (rp.rays[0] - rp.cast[0]) + (rp.rays[1] - rp.cast[1]) + (rp.rays[2] - rp.cast[2]);
+    std::vector<double> pf = tp.pairedFractions;
+    md += Format(
+        "| %s | 1/%llu, %lld | %lld / %lld / %lld (%lld) | %.2f | %.3g | %.3g | %.3g | %s | %s |\n",
+        tp.scene.c_str(), (unsigned long long)rp.stride, (long long)rp.calls, (long long)rp.rays[0],
+        (long long)rp.rays[1], (long long)rp.rays[2], (long long)notCast,
+        double(rp.packed) / double(std::max<int64_t>(rp.CastRays(), 1)), Median(rp.tracerMrays),
+        Median(rp.singleMrays), Median(rp.packetMrays), PairedText(rp.fractions).c_str(),
+        pf.empty() ? "-" : Format("%.2f", Median(pf)).c_str());
+  }
+  md +=
+      "\nReplay rates by kind, Mrays per CPU second (each kind's rays alone, in cast order):\n\n"
+      "| scene | rays | single | packet8 |\n|---|---|---|---|\n";
+  for (const ThroughputInfo& tp : r.throughput) {
+    for (const ReplayRate& one : tp.replay.rates) {
+      if (one.api != "single") continue;
+      const ReplayRate* packet = nullptr;
+      for (const ReplayRate& p : tp.replay.rates)
+        if (p.api == "packet8" && p.rays == one.rays) packet = &p;
+      md += Format("| %s | %s (%lld) | %.3g | %s |\n", tp.scene.c_str(), one.rays.c_str(),
+                   (long long)one.count, one.cpuMraysPerSecond,
+                   packet ? Format("%.3g", packet->cpuMraysPerSecond).c_str() : "-");
+    }
+  }
+  md += "\nPairs in run order (tracer / single / packet8 Mrays per CPU-s, fraction, CPU):\n\n";
+  for (const ThroughputInfo& tp : r.throughput) {
+    const ReplayInfo& rp = tp.replay;
+    if (!rp.measured) continue;
+    md += "- " + tp.scene + ":";
+    for (size_t k = 0; k < rp.fractions.size(); ++k)
+      md += Format(" %.3g / %.3g / %.3g, %.2f (CPU %d);", rp.tracerMrays[k], rp.singleMrays[k],
+                   rp.packetMrays[k], rp.fractions[k], k < rp.cpus.size() ? rp.cpus[k] : -1);
+    md += "\n";
+  }
+  return md;
+}
+
+namespace {
+
 std::string ThroughputBlock(const BenchResults& r) {
-  std::string head = "| throughput, one thread |", rule = "| --- |", mrays, fraction, paired;
+  std::string head = "| throughput, one thread |", rule = "| --- |", mrays, fraction, paired,
+              replay;
+  bool anyReplay = false;
   for (const ThroughputInfo& tp : r.throughput) {
     const RawRate* raw = tp.raw.Find("probe random", "rtcIntersect1", 1);
     if (!raw) continue;
+    std::vector<double> rf = tp.replay.fractions;
+    std::sort(rf.begin(), rf.end());
+    anyReplay = anyReplay || !rf.empty();
+    replay +=
+        rf.empty() ? " - |" : Format(" %.2f (%.2f–%.2f) |", Median(rf), rf.front(), rf.back());
     head += Format(" %s |", SceneTitle(tp.scene).c_str());
     rule += " --- |";
     mrays += Format(" %.3g |", tp.tracerCpuMrays);
@@ -1171,7 +1265,13 @@ std::string ThroughputBlock(const BenchResults& r) {
   return head + "\n" + rule +
          "\n| tracer Mrays per CPU-second (every ray, shadow rays included) |" + mrays +
          "\n| as a fraction of raw Embree (`rtcIntersect1`, the same probes' rays) |" + fraction +
-         "\n| the same in back-to-back pairs on one CPU: median (range) |" + paired + "\n";
+         "\n| the same in back-to-back pairs on one CPU: median (range) |" + paired +
+         (anyReplay
+              ? "\n| as a fraction of raw Embree replaying the bake's own rays (the better of "
+                "one by one and 8-wide packets), pairs: median (range) |" +
+                    replay
+              : std::string()) +
+         "\n";
 }
 
 std::string ScalingMemoryBlock(const BenchResults& r) {

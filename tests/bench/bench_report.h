@@ -11,6 +11,7 @@
 #include "absl/status/statusor.h"
 #include "bench_metrics.h"
 #include "bench_raw_embree.h"
+#include "bench_ray_replay.h"
 
 namespace probebake::bench {
 
@@ -47,6 +48,25 @@ struct SceneInfo {
   int ladderDepth = 0, deepDepth = 0;
 };
 
+// The tracer against raw Embree replaying the tracer's own rays (bench_ray_replay.h): a section of
+// the default bake (1 thread), recorded once, then in back-to-back pairs of the section's tracer
+// CPU time and the replay's rates on one CPU.
+struct ReplayInfo {
+  bool measured = false;
+  uint64_t stride = 1;           // the section: probes whose key hashes to 0 modulo stride
+  int64_t calls = 0;             // TraceBatches calls in the section
+  int64_t rays[kRayKinds] = {};  // recorded, by RayKind, cast or not
+  int64_t cast[kRayKinds] = {};  // of those, cast (what both rates count)
+  int64_t packed = 0;            // cast rays the tracer traced in 8-wide packets
+  // Per pair: the tracer's cast rays per CPU second in the section, the replay's rate one by one
+  // and in packets (Mrays per CPU second), and tracer / the better replay.
+  std::vector<double> tracerMrays, singleMrays, packetMrays, fractions;
+  std::vector<int> cpus;          // the CPU each pair ran on (-1: not pinned)
+  std::vector<ReplayRate> rates;  // per kind and API, measured once after the pairs
+
+  int64_t CastRays() const { return cast[0] + cast[1] + cast[2]; }
+};
+
 // The tracer's throughput next to raw Embree on the same scene.
 struct ThroughputInfo {
   std::string scene;
@@ -69,6 +89,7 @@ struct ThroughputInfo {
   // VM's vCPUs slow down at different times, and they slow the bake more than raw Embree, so a low
   // pair can be traced to its CPU.
   std::vector<int> pairedCpus;
+  ReplayInfo replay;
 };
 
 struct ScalingInfo {
@@ -125,6 +146,10 @@ struct BenchResults {
 // Writes results.md, results.csv, results.json, adaptive_probes.csv and error_vs_time_<scene>.svg
 // into `dir`.
 absl::Status WriteReports(const BenchResults& results, const std::string& dir);
+
+// The replay of the tracer's own rays (ReplayInfo) of every scene that has one, as markdown: the
+// fraction table next to the probe-ray pairs' fraction, and each kind's rates.
+std::string ReplayMarkdown(const BenchResults& results);
 
 // Reads back a results.json written by WriteReports: everything the document blocks below need
 // (the run, scenes, every bake row, throughput, scaling, memory). Not in the JSON, and so left

@@ -66,6 +66,8 @@ class Fields {
     return v && v->kind_case() == Value::kStructValue ? v->struct_value() : kEmpty;
   }
   std::string Path(const std::string& key) const { return path_ + "." + key; }
+  // Whether the object has `key` (for keys that older results lack).
+  bool Has(const char* key) const { return object_.fields().contains(key); }
 
  private:
   void Fail(const char* key, const char* reason) {
@@ -190,6 +192,32 @@ absl::StatusOr<BenchResults> ReadResultsJson(const std::string& path) {
       rate.cpuMraysPerSecond = w.Number("cpuMrays");
       tp.raw.rates.push_back(rate);
     });
+    if (t.Has("replay")) {  // since the replay of the tracer's own rays
+      Fields p(t.Object("replay"), t.Path("replay"), &error);
+      ReplayInfo& rp = tp.replay;
+      rp.measured = true;
+      rp.stride = uint64_t(p.Integer("stride"));
+      rp.calls = p.Integer("calls");
+      for (int k = 0; k < kRayKinds; ++k) {
+        Fields kind(p.Object(RayKindName(RayKind(k))), p.Path(RayKindName(RayKind(k))), &error);
+        rp.rays[k] = kind.Integer("rays");
+        rp.cast[k] = kind.Integer("cast");
+      }
+      rp.packed = p.Integer("packed");
+      rp.tracerMrays = p.Numbers("tracerMrays");
+      rp.singleMrays = p.Numbers("singleMrays");
+      rp.packetMrays = p.Numbers("packetMrays");
+      rp.fractions = p.Numbers("fractions");
+      for (double cpu : p.Numbers("cpus")) rp.cpus.push_back(int(cpu));
+      ForEachObject(p, "rates", &error, [&](Fields& w) {
+        ReplayRate rate;
+        rate.rays = w.String("rays");
+        rate.api = w.String("api");
+        rate.count = w.Integer("count");
+        rate.cpuMraysPerSecond = w.Number("cpuMrays");
+        rp.rates.push_back(rate);
+      });
+    }
     r.throughput.push_back(tp);
   });
   {

@@ -254,6 +254,7 @@ absl::StatusOr<TraceableScene> TraceableScene::Build(const BakeJob& job,
     s.lights = std::make_unique<LightSet>(std::move(unweighted));
   }
   s.integrator = std::make_unique<ProbeIntegrator>(job.scene, *s.tracer, *s.lights, job.settings);
+  s.integrator->SetRayObserver(options.rayObserver);
   return s;
 }
 

@@ -135,6 +135,42 @@ template <int kCellBits>
   return uint16_t(((light % kLightGroups) << (2 * kHalf)) | MortonInterleave(cx, cy));
 }
 
+// The observer's record of a ray cast from `origin` along dir up to tMax.
+ObservedRay Observed(RayKind kind, const Vec3f& origin, const Vec3d& dir, double tMax) {
+  ObservedRay r;
+  r.origin = origin;
+  r.dir = Vec3f(dir);
+  r.tfar = TracerScene::EmbreeTFar(tMax);
+  r.kind = kind;
+  return r;
+}
+
+// Tells `observer` of the n closest-hit rays just cast by IntersectRays (out of line: the tracing
+// itself only tests the observer pointer).
+[[gnu::noinline, gnu::cold]] void ReportIntersections(RayObserver* observer, RayKind kind,
+                                                      bool packed, std::span<const Vec3f> origins,
+                                                      const Vec3d* dirs, int n,
+                                                      const SurfaceHit* hits, const bool* found) {
+  constexpr int kPacket = TracerScene::kPacketWidth;
+  const bool shared = origins.size() == 1;
+  ObservedRay rays[kPacket];
+  for (int k = 0; k < n; k += packed ? kPacket : 1) {
+    const int m = packed ? std::min(kPacket, n - k) : 1;
+    for (int lane = 0; lane < m; ++lane) {
+      const int i = k + lane;
+      ObservedRay& r = rays[lane];
+      r = Observed(kind, origins[shared ? 0 : size_t(i)], dirs[i], kInf);
+      r.packed = packed;
+      r.coherent = packed && shared;
+      r.lanes = uint8_t(m);
+      r.lane = uint8_t(lane);
+      r.hit = found[i];
+      r.tHit = found[i] ? float(hits[i].t) : 0.0f;
+    }
+    observer->OnRays({rays, size_t(m)});
+  }
+}
+
 // The shadow rays of one wave, or of a group's light samples at the probe. Ray r's `key` is its
 // packet bucket, or a marker (kNoRay, kVisible) when it is not traced; once traced, slot[r] is
 // its place in the packets (or its marker) and occluded[slot[r]] its answer.
@@ -159,16 +195,23 @@ struct ShadowRays {
   }
 };
 
+template <int kWidth>
+[[gnu::noinline, gnu::cold]] void ReportShadowRays(RayObserver* observer, int traced,
+                                                   bool sharedOrigin,
+                                                   const ShadowRays<kWidth>& rays);
+
 // Traces rays->count shadow rays: as packets of rays sorted by key (keys below `buckets`), or,
-// in groups of one, the one ray alone. sharedOrigin: every ray starts at origin[0].
+// in groups of one, the one ray alone. sharedOrigin: every ray starts at origin[0]. Tells
+// `observer` (when not null) of the rays once traced.
 template <int kWidth>
 void TraceShadowRays(const TracerScene& tracer, int buckets, bool sharedOrigin,
-                     ShadowRays<kWidth>* rays) {
+                     ShadowRays<kWidth>* rays, RayObserver* observer) {
   if constexpr (kWidth == 1) {
     if (rays->count == 0) return;
     rays->slot[0] = rays->key[0] < buckets ? 0 : rays->key[0];
     if (rays->slot[0] == 0)
       rays->occluded[0] = tracer.Occluded(rays->origin[0], rays->dir[0], rays->tMax[0]);
+    if (observer) ReportShadowRays(observer, rays->slot[0] == 0 ? 1 : 0, sharedOrigin, *rays);
   } else {
     static_assert(kWidth <= kVisible, "slots never meet the markers");
     const int traced = SortSlots(rays->key, rays->count, buckets, rays->slot);
@@ -187,14 +230,51 @@ void TraceShadowRays(const TracerScene& tracer, int buckets, bool sharedOrigin,
                             std::span<const Vec3d>(rays->sortedDir + k, m), rays->sortedTMax + k,
                             rays->occluded + k);
     }
+    if (observer) ReportShadowRays(observer, traced, sharedOrigin, *rays);
+  }
+}
+
+// The shadow rays TraceShadowRays traced (`traced` of them, by slot: alone for groups of one, in
+// packets otherwise), then those it counted as visible without tracing.
+template <int kWidth>
+void ReportShadowRays(RayObserver* observer, int traced, bool sharedOrigin,
+                      const ShadowRays<kWidth>& rays) {
+  constexpr int kPacket = TracerScene::kPacketWidth;
+  constexpr bool kPacked = kWidth > 1;
+  ObservedRay batch[kPacket];
+  for (int k = 0; k < traced; k += kPacket) {
+    const int m = std::min(kPacket, traced - k);
+    for (int lane = 0; lane < m; ++lane) {
+      const int i = k + lane;
+      const Vec3f& origin = (sharedOrigin || !kPacked) ? rays.origin[0] : rays.sortedOrigin[i];
+      ObservedRay& r = batch[lane];
+      r = kPacked ? Observed(RayKind::kShadow, origin, rays.sortedDir[i], rays.sortedTMax[i])
+                  : Observed(RayKind::kShadow, origin, rays.dir[0], rays.tMax[0]);
+      r.packed = kPacked;
+      r.coherent = kPacked && sharedOrigin;
+      r.lanes = uint8_t(m);
+      r.lane = uint8_t(lane);
+      r.hit = rays.occluded[i];
+    }
+    observer->OnRays({batch, size_t(m)});
+  }
+  for (int r = 0; r < rays.count; ++r) {
+    if (rays.key[r] != kVisible) continue;
+    ObservedRay v =
+        Observed(RayKind::kShadow, rays.origin[sharedOrigin ? 0 : r], rays.dir[r], rays.tMax[r]);
+    v.cast = false;
+    observer->OnRays({&v, 1});
   }
 }
 
 // found[k], hits[k] (left alone on a miss) of the rays from origins[k] (or origins[0] for all)
 // along dirs[k], k < n: as packets in this order, or, in groups of one, the one ray alone.
+// Tells `observer` (when not null) of the rays once traced, as rays of `kind`.
 template <int kWidth>
-void IntersectRays(const TracerScene& tracer, std::span<const Vec3f> origins, const Vec3d* dirs,
-                   int n, SurfaceHit* hits, bool* found) {
+[[gnu::always_inline]] inline void IntersectRays(const TracerScene& tracer,
+                                                 std::span<const Vec3f> origins, const Vec3d* dirs,
+                                                 int n, SurfaceHit* hits, bool* found, RayKind kind,
+                                                 RayObserver* observer) {
   if constexpr (kWidth == 1) {
     if (n > 0) found[0] = tracer.Intersect(origins[0], dirs[0], kInf, &hits[0]);
   } else {
@@ -206,6 +286,7 @@ void IntersectRays(const TracerScene& tracer, std::span<const Vec3f> origins, co
                              std::span<const Vec3d>(dirs + k, m), hits + k, found + k);
     }
   }
+  if (observer) ReportIntersections(observer, kind, kWidth > 1, origins, dirs, n, hits, found);
 }
 
 // A path between two waves.
@@ -340,6 +421,8 @@ struct ProbeIntegrator::Group {
   // the vertices of odd and even depth.
   std::vector<double> probeImportance;
   std::vector<double> importance[2];
+  // Told of the call's rays (ray_observer.h); null: nobody is.
+  RayObserver* observer = nullptr;
 };
 
 template <typename S>
@@ -410,6 +493,7 @@ template <bool kMedium>
 Vec3d ProbeIntegrator::ShadowTransmittance(const Vec3f& origin, const LightSample& s,
                                            TraceCounters* counters) const {
   ++counters->rays;  // counted whether traced or not, as the driver counts its shadow rays
+  ++counters->shadowRays;
   Vec3d dir;
   double tMax;
   const bool occluded = ShadowRay(origin, s, &dir, &tMax) && tracer_.Occluded(origin, dir, tMax);
@@ -484,12 +568,17 @@ bool ProbeIntegrator::TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t fi
   probe.importance = group.probeImportance;
   probe.lightSample = lightSampling_ && probe.total > 0;
 
+  group.observer =
+      observer_ && observer_->BeginCall(probeKey, firstBatch, count) ? observer_ : nullptr;
   SampleCursor cursor(work);
   for (int64_t c = 0; c < count; c += kWidth) {
     if ((c & 255) == 0) {  // kWidth divides 256
       if (shared) shared->Add(local);
       local = {};
-      if (cancel && cancel->load(std::memory_order_relaxed)) return false;
+      if (cancel && cancel->load(std::memory_order_relaxed)) {
+        if (observer_) observer_->EndCall();
+        return false;
+      }
     }
     group.n = int(std::min<int64_t>(kWidth, count - c));
     for (int j = 0; j < group.n; ++j, cursor.Next()) {
@@ -502,6 +591,7 @@ bool ProbeIntegrator::TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t fi
     local.samples += group.n;
   }
   if (shared) shared->Add(local);
+  if (observer_) observer_->EndCall();
   return true;
 }
 
@@ -563,6 +653,7 @@ void ProbeIntegrator::StartAtProbe(const Probe& probe, std::span<S> samplers,
     if (!lights_.Sample(probe.p, nullptr, probe.importance, probe.total, uSelect, uLight, &ls))
       continue;
     ++counters->rays;  // counted whether traced or not
+    ++counters->shadowRays;
     shadow.key[j] = ShadowRay(probe.origin, ls, &shadow.dir[j], &shadow.tMax[j])
                         ? (kWidth > 1 ? ShadowCell<kCellBits>(shadow.dir[j], ls.light) : 0)
                         : kVisible;
@@ -580,9 +671,11 @@ void ProbeIntegrator::StartAtProbe(const Probe& probe, std::span<S> samplers,
     g->nextDir[slot[j]] = g->wi[j];
     g->active[slot[j]] = uint16_t(j);
   }
-  IntersectRays<kWidth>(tracer_, {&probe.origin, 1}, g->nextDir, g->n, g->hit, g->found);
+  IntersectRays<kWidth>(tracer_, {&probe.origin, 1}, g->nextDir, g->n, g->hit, g->found,
+                        RayKind::kProbe, g->observer);
   counters->rays += g->n;
-  if (probe.lightSample) TraceShadowRays(tracer_, kChunk, /*sharedOrigin=*/true, &shadow);
+  if (probe.lightSample)
+    TraceShadowRays(tracer_, kChunk, /*sharedOrigin=*/true, &shadow, g->observer);
 }
 
 template <bool kMedium, int kWidth, typename S>
@@ -646,6 +739,7 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
       if (v.lightSampled) {
         const int r = shadow.count++;
         ++counters->rays;  // counted whether traced or not
+        ++counters->shadowRays;
         shadow.origin[r] = v.spawn;
         shadow.key[r] = ShadowRay(v.spawn, v.ls, &shadow.dir[r], &shadow.tMax[r])
                             ? uint16_t(v.ls.light % kShadowGroups)
@@ -685,7 +779,7 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
 
     // Each light sample's contribution is added after its vertex's emission and before the next
     // vertex's, as the path meets them.
-    TraceShadowRays(tracer_, kShadowGroups, /*sharedOrigin=*/false, &shadow);
+    TraceShadowRays(tracer_, kShadowGroups, /*sharedOrigin=*/false, &shadow, g->observer);
     for (int r = 0; r < shadow.count; ++r) {
       const Vec3d tr =
           Arrived<kMedium>(!shadow.Reaches(r), shadow.origin[r], shadow.dir[r], shadow.tMax[r]);
@@ -695,7 +789,7 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
     // The next wave, in the order of this one: neighbouring rays start from neighbouring points.
     // The hits just read are overwritten only now.
     IntersectRays<kWidth>(tracer_, std::span<const Vec3f>(nextOrigin, size_t(nextRays)), nextDir,
-                          nextRays, g->hit, g->found);
+                          nextRays, g->hit, g->found, RayKind::kBounce, g->observer);
     counters->rays += nextRays;
     std::copy(next, next + nextRays, g->active);
     count = nextRays;

@@ -61,6 +61,7 @@
 
 #include "light_set.h"
 #include "medium.h"
+#include "probebake/bake/ray_observer.h"
 #include "probebake/math/vec3.h"
 #include "probebake/sampling/spherical_fibonacci.h"
 #include "probebake/scene/scene.h"
@@ -71,15 +72,20 @@ namespace probebake {
 struct TraceCounters {
   int64_t rays = 0;
   int64_t samples = 0;
+  // Of `rays`, the shadow rays (the others: one first ray per sample, and the paths'
+  // continuation rays).
+  int64_t shadowRays = 0;
 };
 
 // Bake-wide totals that progress reports read while workers run.
 struct SharedCounters {
   std::atomic<int64_t> rays{0};
   std::atomic<int64_t> samples{0};
+  std::atomic<int64_t> shadowRays{0};
   void Add(const TraceCounters& c) {
     rays.fetch_add(c.rays, std::memory_order_relaxed);
     samples.fetch_add(c.samples, std::memory_order_relaxed);
+    shadowRays.fetch_add(c.shadowRays, std::memory_order_relaxed);
   }
 };
 
@@ -117,6 +123,10 @@ class ProbeIntegrator {
   bool TraceBatches(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
                     std::span<const BatchWork> work, SharedCounters* shared,
                     const std::atomic<bool>* cancel) const;
+
+  // Reports the rays of TraceBatches calls to `observer` (ray_observer.h); null: none (the
+  // default). Not thread-safe against running calls: set before tracing.
+  void SetRayObserver(RayObserver* observer) { observer_ = observer; }
 
   // Fraction of the sampled light's radiance that reaches `origin`: 0 when occluded, else the
   // medium's transmittance (1 without a medium).
@@ -204,6 +214,7 @@ class ProbeIntegrator {
   bool countEmission_;  // direction-sampled rays count the emission they hit
   bool mis_;            // weight the two by the power heuristic
   bool packets_;        // trace calls large enough for them as packets
+  RayObserver* observer_ = nullptr;
 };
 
 }  // namespace probebake

@@ -80,9 +80,7 @@ void InitRay(RTCRay& ray, const Vec3f& origin, const Vec3d& dir, double tMax) {
   ray.dir_y = float(dir.y);
   ray.dir_z = float(dir.z);
   ray.time = 0;
-  ray.tfar = tMax >= double(std::numeric_limits<float>::max())
-                 ? std::numeric_limits<float>::infinity()
-                 : float(tMax);
+  ray.tfar = TracerScene::EmbreeTFar(tMax);
   ray.mask = 0xFFFFFFFFu;
   ray.id = 0;
   ray.flags = 0;

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <vector>
@@ -54,6 +55,12 @@ class TracerScene {
 
   // Nearest hit along origin + t dir, t in (0, tMax); dir unit. Returns false on a miss.
   bool Intersect(const Vec3f& origin, const Vec3d& dir, double tMax, SurfaceHit* hit) const;
+  // The float tfar Embree is given for a ray's tMax (infinite beyond the float range).
+  static float EmbreeTFar(double tMax) {
+    return tMax >= double(std::numeric_limits<float>::max())
+               ? std::numeric_limits<float>::infinity()
+               : float(tMax);
+  }
   // Rays traced together by IntersectPacket.
   static constexpr int kPacketWidth = 8;
   // Intersect(origins[k], dirs[k], inf, &hits[k]) for up to kPacketWidth unit directions, traced

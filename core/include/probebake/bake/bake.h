@@ -12,6 +12,7 @@
 
 #include "absl/status/statusor.h"
 #include "probebake/bake/probe_volume.h"
+#include "probebake/bake/ray_observer.h"
 #include "probebake/scene/scene.h"
 
 namespace probebake {
@@ -55,6 +56,9 @@ struct BakeOptions {
   // finished probes (others zero) and the per-probe done flags: what resumeFrom/resumeDone take.
   std::function<void(const ProbeVolume&, const std::vector<uint8_t>& done)> checkpoint;
   double checkpointIntervalSeconds = 10;
+  // Optional: sees the rays the probes' sampling casts (ray_observer.h; measurement only, the
+  // bits do not change). Must outlive the bake, and be thread-safe when threads != 1.
+  RayObserver* rayObserver = nullptr;
 };
 
 // Adaptive sampling (settings.targetRelError > 0): a probe bakes batches in rounds (the first 8,
