@@ -12,7 +12,9 @@
 namespace probebake::server {
 namespace {
 
-constexpr char kMagic[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '4'};
+constexpr char kMagic[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '5'};
+// 04: no offsets, visibility moments, filled flags or window parameters.
+constexpr char kMagic04[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '4'};
 // The formats before the L0 standard errors (03) and before BakeWork (02).
 constexpr char kMagic03[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '3'};
 constexpr char kMagic02[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '2'};
@@ -62,7 +64,8 @@ class Reader {
     uint64_t n;
     if (!Pod(&n) || n > bytes_.size() / sizeof(T)) return false;
     v->resize(size_t(n));
-    std::memcpy(v->data(), bytes_.data(), size_t(n) * sizeof(T));
+    // memcpy from or to an empty vector's null data() is undefined, even for 0 bytes.
+    if (n > 0) std::memcpy(v->data(), bytes_.data(), size_t(n) * sizeof(T));
     bytes_.remove_prefix(size_t(n) * sizeof(T));
     return true;
   }
@@ -152,6 +155,13 @@ absl::Status WriteCheckpoint(const std::filesystem::path& path, const std::strin
   w.Pod(work.samples);
   w.Pod(work.rays);
   w.Vector(volume.stdErrorL0);
+  // 05: the per-probe planes of relocation, visibility, dilation and the automatic window, which
+  // a resumed bake copies from the checkpoint with the radiance of finished probes.
+  w.Vector(volume.offset);
+  w.Vector(volume.filled);
+  w.Vector(volume.autoWindowT);
+  w.Pod(uint64_t(volume.visibility.size()));
+  for (const std::vector<float>& plane : volume.visibility) w.Vector(plane);
   std::string hash = Sha256Hex(w.bytes());
   w.bytes().append(hash);
   return runtime::WriteFileAtomic(path, w.bytes());
@@ -168,7 +178,8 @@ absl::StatusOr<Checkpoint> Read(const std::filesystem::path& path,
   };
   if (bytes.size() < sizeof(kMagic) + kHashHexBytes) return corrupt("not a probebake checkpoint");
   const bool current = std::memcmp(bytes.data(), kMagic, sizeof(kMagic)) == 0;
-  const bool hasWork = current || std::memcmp(bytes.data(), kMagic03, sizeof(kMagic03)) == 0;
+  const bool hasL0 = current || std::memcmp(bytes.data(), kMagic04, sizeof(kMagic04)) == 0;
+  const bool hasWork = hasL0 || std::memcmp(bytes.data(), kMagic03, sizeof(kMagic03)) == 0;
   if (!hasWork && std::memcmp(bytes.data(), kMagic02, sizeof(kMagic02)) != 0)
     return corrupt("not a probebake checkpoint");
   std::string_view body(bytes.data(), bytes.size() - kHashHexBytes);
@@ -180,10 +191,19 @@ absl::StatusOr<Checkpoint> Read(const std::filesystem::path& path,
     return corrupt("malformed contents");
   if (hasWork && (!r.Pod(&c.work.wallSeconds) || !r.Pod(&c.work.samples) || !r.Pod(&c.work.rays)))
     return corrupt("malformed contents");
-  if (!current) {
+  if (!hasL0) {
     c.volume.stdErrorL0 = c.volume.stdError;  // before 04 std_error was the L0 figure
   } else if (!r.Vector(&c.volume.stdErrorL0)) {
     return corrupt("malformed contents");
+  }
+  if (current) {
+    uint64_t planes = 0;
+    if (!r.Vector(&c.volume.offset) || !r.Vector(&c.volume.filled) ||
+        !r.Vector(&c.volume.autoWindowT) || !r.Pod(&planes) || planes > 4096)
+      return corrupt("malformed contents");
+    c.volume.visibility.resize(size_t(planes));
+    for (std::vector<float>& plane : c.volume.visibility)
+      if (!r.Vector(&plane)) return corrupt("malformed contents");
   }
   if (!r.AtEnd()) return corrupt("malformed contents");
   if (expectedJobDigest && c.jobDigest != *expectedJobDigest)

@@ -4,14 +4,17 @@
 // the same bits as an uninterrupted bake because finished probes are stored exactly (floats as
 // their bytes) and the baker derives every probe's samples from (seed, probe, sample) alone.
 //
-// File format (little-endian, this machine's float layout): "PBCKPT04", the job digest, the
+// File format (little-endian, this machine's float layout): "PBCKPT05", the job digest, the
 // volume (grid, order, active flags, every plane (radiance, irradiance, radiance standard
 // errors), window, stats), the done flags, the work of the attempts so far (BakeWork), the
-// volume's L0 standard errors, then the SHA-256 of everything before it. Written atomically
+// volume's L0 standard errors, its relocation offsets, filled flags, automatic-window parameters
+// and visibility planes (each empty when the bake has none), then the SHA-256 of everything
+// before it. Written atomically
 // (temporary file, fsync, rename, fsync of the folder); a file that is short, corrupt or for
-// another job digest is rejected on load. "PBCKPT03" files (no L0 standard errors: their std_error
-// was the L0 figure, copied there) and "PBCKPT02" files (no BakeWork either: zero work) are still
-// read.
+// another job digest is rejected on load. "PBCKPT04" files (no offsets, filled flags, window
+// parameters or visibility: read with those planes empty), "PBCKPT03" files (no L0 standard errors:
+// their std_error was the L0 figure, copied there) and "PBCKPT02" files (no BakeWork either: zero
+// work) are still read.
 #pragma once
 
 #include <cstdint>

@@ -80,6 +80,36 @@ TEST(Checkpoint, RoundTripIsBitExact) {
   EXPECT_EQ(r.stats.samples, 2816);
 }
 
+// A resumed bake copies finished probes from the checkpoint: their relocation offsets, visibility
+// moments, filled flags and window parameters must come back with their radiance, bit for bit
+// (format 04 did not hold them, so a probe resumed after a restart lost them).
+TEST(Checkpoint, RelocationVisibilityFilledAndWindowPlanesRoundTrip) {
+  TempDir dir;
+  ProbeVolume v = SmallVolume();
+  const size_t n = size_t(v.grid.ProbeCount());
+  for (size_t i = 0; i < 3 * n; ++i) v.offset.push_back(float(i) * 0.01f - 0.1f);
+  for (size_t i = 0; i < n; ++i) v.filled.push_back(float(i % 2));
+  for (size_t i = 0; i < n; ++i) v.autoWindowT.push_back(1.0f / float(i + 1));
+  v.visibility.assign(64, std::vector<float>(3 * n));
+  for (size_t t = 0; t < 64; ++t)
+    for (size_t i = 0; i < 3 * n; ++i) v.visibility[t][i] = float(t) + float(i) * 0.125f;
+  const std::vector<uint8_t> done(n, 1);
+  const auto path = dir.path() / "j.ckpt";
+  ASSERT_TRUE(WriteCheckpoint(path, "d", v, done).ok());
+  const auto read = ReadCheckpoint(path, "d");
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->volume.offset, v.offset);
+  EXPECT_EQ(read->volume.filled, v.filled);
+  EXPECT_EQ(read->volume.autoWindowT, v.autoWindowT);
+  EXPECT_EQ(read->volume.visibility, v.visibility);
+  // Without those features the planes stay empty.
+  ASSERT_TRUE(WriteCheckpoint(path, "d", SmallVolume(), done).ok());
+  const auto plain = ReadCheckpoint(path, "d");
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  EXPECT_TRUE(plain->volume.offset.empty() && plain->volume.visibility.empty() &&
+              plain->volume.filled.empty() && plain->volume.autoWindowT.empty());
+}
+
 TEST(Checkpoint, ReadsTheFormerFormatWithZeroWork) {
   TempDir dir;
   ProbeVolume v = SmallVolume();
@@ -93,11 +123,22 @@ TEST(Checkpoint, ReadsTheFormerFormatWithZeroWork) {
     std::ifstream in(path, std::ios::binary);
     bytes.assign(std::istreambuf_iterator<char>(in), {});
   }
-  // PBCKPT02 is the same without the work (3 x 8 bytes) and the L0 standard errors (a count and
-  // a float per probe) before the 64-character hash.
-  ASSERT_EQ(bytes.substr(0, 8), "PBCKPT04");
+  // PBCKPT04 is 05 without the four empty planes of offsets, filled flags, window parameters and
+  // visibility (four 8-byte counts) before the 64-character hash; PBCKPT02 is 04 without the work
+  // (3 x 8 bytes) and the L0 standard errors (a count and a float per probe).
+  ASSERT_EQ(bytes.substr(0, 8), "PBCKPT05");
+  const size_t planesBytes = 4 * 8;
+  std::string v04 = "PBCKPT04" + bytes.substr(8, bytes.size() - 8 - planesBytes - 64);
+  v04 += Sha256Hex(v04);
+  std::ofstream(path, std::ios::binary | std::ios::trunc) << v04;
+  const auto read04 = ReadCheckpoint(path, "digest1");
+  ASSERT_TRUE(read04.ok()) << read04.status();
+  EXPECT_EQ(read04->work.samples, 5);
+  EXPECT_EQ(read04->volume.stdErrorL0, v.stdErrorL0);
+  EXPECT_TRUE(read04->volume.visibility.empty());
   const size_t l0Bytes = 8 + 4 * v.stdErrorL0.size();
-  std::string old = "PBCKPT02" + bytes.substr(8, bytes.size() - 8 - l0Bytes - 24 - 64);
+  std::string old =
+      "PBCKPT02" + bytes.substr(8, bytes.size() - 8 - planesBytes - l0Bytes - 24 - 64);
   old += Sha256Hex(old);
   std::ofstream(path, std::ios::binary | std::ios::trunc) << old;
   auto read = ReadCheckpoint(path, "digest1");
