@@ -521,6 +521,13 @@ TEST(VdbIo, DeclaredLengthsPastTheFileAreRefusedBeforeOpenVdbReadsThem) {
             absl::string_view::npos)
       << type;
   EXPECT_NE(type.message().find(dir.File("type.vdb")), absl::string_view::npos) << type;
+  // A fixed-size value declaring another size: OpenVDB reads sizeof(T) and would part from the
+  // walk, reading what follows as lengths.
+  const size_t gridMin = FindString(good, "grid_min");
+  const absl::Status vec = damaged("vec.vdb", gridMin + 4 + 8 + 4 + 5, 13592);
+  EXPECT_NE(vec.message().find("file metadata \"grid_min\" (vec3d) declares 13592 bytes, not 24"),
+            absl::string_view::npos)
+      << vec;
   // And the untouched file still reads.
   EXPECT_TRUE(ReadProbeVolume(good).ok());
 }

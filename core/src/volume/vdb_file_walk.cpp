@@ -4,6 +4,8 @@
 #include <cstring>
 #include <fstream>
 #include <limits>
+#include <map>
+#include <string_view>
 
 #include <openvdb/version.h>
 
@@ -25,7 +27,15 @@ class Walker {
     at_ = to;
     return bool(in_);
   }
+  uint64_t Size() const { return size_; }
   bool Skip(uint64_t n) { return n <= Left() && Seek(at_ + n); }
+  bool Bytes(uint64_t n, std::string* out) {
+    if (n > Left()) return false;
+    out->resize(size_t(n));
+    if (n > 0 && !in_.read(out->data(), std::streamsize(n))) return false;
+    at_ += n;
+    return true;
+  }
 
   template <typename T>
   bool Read(T* value) {
@@ -62,6 +72,64 @@ class Walker {
   uint64_t at_ = 0;
 };
 
+// OpenVDB's own per-grid metadata of leaf-buffer masks and sizes ("file_delayed_load"), which it
+// writes into every grid and reads by the counts inside it.
+constexpr const char* kDelayedLoad = "__delayedload";
+
+// The delayed-load value: a count, then a mask of `count` int8 and `count` int64 sizes, each raw
+// or Blosc-compressed (uint32 byte size first; UINT32_MAX for no sizes). OpenVDB sizes its arrays
+// by the count and by the uncompressed size in the Blosc header, so both are bounded by what a
+// writer can produce: one entry per leaf buffer (at least a byte of the file each), and at most
+// 8 bytes per byte of the file uncompressed (OpenVDB's writer pads the arrays a little).
+std::string DelayedLoadProblem(std::string_view value, uint64_t fileBytes,
+                               const std::string& what) {
+  if (value.empty()) return "";
+  const auto u32 = [&](size_t at) {
+    uint32_t v = 0;
+    for (int i = 0; i < 4; ++i) v |= uint32_t(uint8_t(value[at + size_t(i)])) << (8 * i);
+    return v;
+  };
+  if (value.size() < 8) return what + " is cut short";
+  const uint64_t count = u32(0);
+  if (count > fileBytes) {
+    return what + " declares " + std::to_string(count) + " leaf buffers in a file of " +
+           std::to_string(fileBytes) + " bytes";
+  }
+  size_t at = 4;
+  for (const uint64_t entryBytes : {uint64_t(1), uint64_t(8)}) {
+    if (value.size() - at < 4) return what + " is cut short";
+    const uint32_t bytes = u32(at);
+    at += 4;
+    if (entryBytes == 8 && bytes == UINT32_MAX) return "";  // no sizes stored
+    if (bytes == 0) {
+      if (count * entryBytes > value.size() - at) return what + " is cut short";
+      at += size_t(count * entryBytes);
+      continue;
+    }
+    // Blosc's header: version, versionlz, flags, typesize, then nbytes (uint32, uncompressed).
+    if (bytes < 16 || bytes > value.size() - at) return what + " is cut short";
+    if (u32(at + 4) > 8 * fileBytes) {
+      return what + "'s compressed data declares " + std::to_string(u32(at + 4)) +
+             " bytes in a file of " + std::to_string(fileBytes);
+    }
+    at += bytes;
+  }
+  return "";
+}
+
+// The bytes OpenVDB reads for a value of metadata type `type`: its fixed-size types read
+// sizeof(T) whatever size the file declares, so a different declared size would make OpenVDB part
+// from this walk. 0 for a string (the declared size); -1 for a type this reader does not take.
+int64_t MetadataValueBytes(const std::string& type) {
+  static const std::map<std::string, int64_t> kFixed = {
+      {"bool", 1},   {"int32", 4},  {"int64", 8},  {"float", 4},  {"double", 8}, {"vec2i", 8},
+      {"vec2s", 8},  {"vec2d", 16}, {"vec3i", 12}, {"vec3s", 12}, {"vec3d", 24}, {"vec4i", 16},
+      {"vec4s", 16}, {"vec4d", 32}, {"mat4s", 64}, {"mat4d", 128}};
+  if (type == "string" || type == kDelayedLoad) return 0;
+  const auto it = kFixed.find(type);
+  return it == kFixed.end() ? -1 : it->second;
+}
+
 // A MetaMap: uint32 count, then per entry a name, a type name and a uint32-sized value.
 std::string WalkMetadata(Walker& w, const std::string& what) {
   uint32_t count = 0;
@@ -76,8 +144,25 @@ std::string WalkMetadata(Walker& w, const std::string& what) {
     const std::string entry = what + " entry " + std::to_string(i);
     if (std::string p = w.String(entry + "'s name", &name); !p.empty()) return p;
     const std::string named = name.empty() ? entry : what + " \"" + name + "\"";
-    if (std::string p = w.String(named + "'s type", nullptr); !p.empty()) return p;
-    if (std::string p = w.String(named + "'s value", nullptr); !p.empty()) return p;
+    std::string type;
+    if (std::string p = w.String(named + "'s type", &type); !p.empty()) return p;
+    const int64_t valueBytes = MetadataValueBytes(type);
+    if (valueBytes < 0)
+      return named + " has type \"" + type + "\", which this reader does not take";
+    uint32_t declared = 0;
+    if (!w.Read(&declared)) return named + "'s value is cut short";
+    if (valueBytes > 0 && declared != uint64_t(valueBytes)) {
+      return named + " (" + type + ") declares " + std::to_string(declared) + " bytes, not " +
+             std::to_string(valueBytes);
+    }
+    if (type == kDelayedLoad && declared <= w.Left()) {
+      std::string value;
+      if (!w.Bytes(declared, &value)) return named + "'s value is cut short";
+      if (std::string p = DelayedLoadProblem(value, w.Size(), named); !p.empty()) return p;
+    } else if (!w.Skip(declared)) {
+      return named + "'s value declares " + std::to_string(declared) + " bytes; " +
+             std::to_string(w.Left()) + " are left";
+    }
   }
   return "";
 }

@@ -3,8 +3,12 @@
 //
 // OpenVDB sizes strings and metadata values by the lengths the file declares and fills them
 // before reading (a damaged 100 kB file can make it allocate and zero gigabytes, for minutes);
-// this walk checks every declared length against the bytes the file holds, and every grid's
-// offsets against the file's size, first. It reads nothing a length has not been checked for.
+// this walk checks every declared length against the bytes the file holds, every fixed-size
+// metadata value's declared size against its type's (OpenVDB reads sizeof(T) whatever is
+// declared), OpenVDB's delayed-load counts against the file's size, and every grid's offsets
+// against the file's size, first. It reads nothing a length has not been checked for. Metadata of
+// types OpenVDB does not register for plain values (anything but bool, int32, int64, float,
+// double, string, vec2/3/4 i/s/d, mat4s/d and OpenVDB's own delayed-load record) is refused.
 #pragma once
 
 #include <string>
