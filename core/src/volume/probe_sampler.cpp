@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 
 #include "probebake/sh/sh_basis.h"
 #include "probebake/sh/sh_convolution.h"
@@ -20,6 +18,14 @@ namespace {
 constexpr double kCrush = 0.2;
 constexpr double kMinWeight = 1e-30;
 
+// The variance left at least, relative to the squared mean: a standard deviation of 1% of s,
+// so that a point on the surface a probe sees (s = mean within rounding) is not decided by it.
+constexpr double kMinRelativeVariance = 1e-4;
+
+double L1(const Vec3d& w) {
+  return std::abs(w.x) + std::abs(w.y) + std::abs(w.z);
+}
+
 }  // namespace
 
 ProbeSampler::ProbeSampler(const ProbeVolume& volume, ProbeSamplerOptions options)
@@ -33,18 +39,36 @@ ProbeSampler::ProbeSampler(const ProbeVolume& volume, ProbeSamplerOptions option
   }
 }
 
-double ProbeSampler::Chebyshev(int64_t probe, const Vec3d& probePos, const Vec3d& x) const {
+double ProbeVisibility(const ProbeVolume& volume, int64_t probe, const Vec3d& probePos,
+                       const Vec3d& x) {
   const Vec3d fromProbe = x - probePos;
   const double d = Length(fromProbe);
   if (!(d > 0)) return 1;
-  // The texel holding the direction, unfiltered. (Bilinear filtering between texel centres, as
-  // DDGI samples its depth maps, leaked more through the thin wall of the leak test: a texel's
-  // neighbours see the wall at grazing angles, farther.)
-  const float* m = &volume_.visibility[size_t(VisibilityTexel(fromProbe / d))][3 * size_t(probe)];
-  const double mean = m[0], meanSq = m[1];
-  if (d <= mean) return 1;
-  const double variance = std::abs(meanSq - mean * mean);
-  const double excess = d - mean;
+  const Vec3d w = fromProbe / d;
+  // Each tap's moments of s = 1/t scaled to q = s / |c|_1 (c its centre direction): q is linear
+  // in the octahedral coordinates for a plane, so the bilinear blend stays on it, and s at w is
+  // the blend times |w|_1.
+  const VisibilityTaps taps = VisibilityBilinear(w);
+  double mean = 0, variance = 0, q[4];
+  for (int k = 0; k < 4; ++k) {
+    const float* m = &volume.visibility[size_t(taps.texel[k])][3 * size_t(probe)];
+    const double scale = 1 / L1(VisibilityTexelCentre(taps.texel[k]));
+    q[k] = scale * m[0];
+    mean += taps.weight[k] * q[k];
+    variance += taps.weight[k] * scale * scale * std::max(double(m[1]) - double(m[0]) * m[0], 0.0);
+  }
+  // Less the part of the texels' spread that the trend between them explains (a linear ramp
+  // across a texel has variance gradient^2 / 12 per axis): interpolated, it is no uncertainty.
+  const double wu = taps.weight[1] + taps.weight[3], wv = taps.weight[2] + taps.weight[3];
+  const double gu = (q[1] - q[0]) * (1 - wv) + (q[3] - q[2]) * wv;
+  const double gv = (q[2] - q[0]) * (1 - wu) + (q[3] - q[1]) * wu;
+  variance = std::max(variance - (gu * gu + gv * gv) / 12, kMinRelativeVariance * mean * mean);
+  const double scale = L1(w);
+  mean *= scale;
+  variance *= scale * scale;
+  const double s = 1 / d;
+  if (s >= mean) return 1;  // nearer than the surfaces the probe sees that way
+  const double excess = mean - s;
   const double p = variance / (variance + excess * excess);
   return p * p * p;
 }
@@ -96,17 +120,12 @@ ProbeSample ProbeSampler::Sample(const Vec3d& position, const Vec3d& normal) con
       w *= h * h + 0.2;
     }
     if (visibility) {
-      w *= std::min(Chebyshev(p, probePos, biased), Chebyshev(p, probePos, position));
+      w *= std::min(ProbeVisibility(volume_, p, probePos, biased),
+                    ProbeVisibility(volume_, p, probePos, position));
       w = std::max(w, kMinWeight);
       if (w < kCrush) w *= w * w / (kCrush * kCrush);
     }
     w *= trilinear;
-    if (getenv("SAMPLER_DEBUG"))
-      std::fprintf(stderr, "  probe (%g %g %g) tri %g chebB %g chebP %g w %g E0 %g\n", probePos.x,
-                   probePos.y, probePos.z, trilinear,
-                   visibility ? Chebyshev(p, probePos, biased) : -1,
-                   visibility ? Chebyshev(p, probePos, position) : -1, w,
-                   volume_.radiance[0][3 * size_t(p)]);
     total += w;
     ++out.probes;
     for (int i = 0; i < coeffs; ++i) {

@@ -25,7 +25,7 @@
 // - Compression: OpenVDB's default for files, blosc + active-mask compression (this OpenVDB build
 //   has blosc; zip would be its fallback). Lossless.
 // - File metadata (name: OpenVDB metadata type, all readable by pyopenvdb):
-//     probebake_format: int32 (2)          sh_order: int32 (L)
+//     probebake_format: int32 (4)          sh_order: int32 (L)
 //     sh_basis: string ("real-orthonormal-condon-shortley-zpolar")
 //     sh_window: string (ProbeVolume::window, e.g. "NONE")
 //     quantity: string ("radiance")        has_irradiance: bool
@@ -68,9 +68,10 @@
 
 namespace probebake {
 
-// The format written (docs/volume-format.md, "Versions and migration notes"), and the older one
-// ReadProbeVolume still reads.
-inline constexpr int kProbeVolumeFormat = 3;
+// The format written (docs/volume-format.md, "Versions and migration notes"), and the older ones
+// ReadProbeVolume still reads (format 3's visibility moments, of distances, are not read).
+inline constexpr int kProbeVolumeFormat = 4;
+inline constexpr int kProbeVolumeFormat3 = 3;
 inline constexpr int kProbeVolumeFormat2 = 2;
 inline constexpr int kProbeVolumeFormat1 = 1;
 // Largest SH order whose coefficient indices fit the two-digit grid names.

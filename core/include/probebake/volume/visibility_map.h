@@ -1,10 +1,10 @@
 // The visibility moments of a probe (docs/volume-format.md, `visibility_NN`), after DDGI and
 // McGuire et al.'s light-field probes: over an octahedral map of kVisibilityMapSize^2 texels, the
-// mean distance and mean squared distance from the probe to the first surface its own primary
-// rays hit, with a miss (or a hit beyond it) counted as VisibilityMaxDistance. A sampler reads
-// them as a Chebyshev bound on whether a point at distance d in a texel's direction is visible
-// from the probe.
-//
+// mean and mean square of the inverse distance s = 1/t from the probe to the first surface its
+// own primary rays hit, a miss (or a hit beyond VisibilityMaxDistance) counting as s = 0. A
+// sampler reads them as a Chebyshev bound on whether a point at distance d in a texel's
+// direction is visible from the probe (probebake/volume/probe_sampler.h, ProbeVisibility).
+// Inverse distances rather than DDGI's distances: see InverseDistance.//
 // Why 8 x 8: the moments come from the probe's own rays at no extra cost, so the texel count
 // trades the map's angular resolution (a texel spans about 4 pi / 64 = 0.2 sr, some 25 degrees)
 // against the rays per texel (16 at the default 1024 samples, so a texel's mean is itself
@@ -51,6 +51,71 @@ inline int VisibilityTexel(const Vec3d& w) {
                       kVisibilityMapSize - 1);
   };
   return cell(v) * kVisibilityMapSize + cell(u);
+}
+
+// The texel (column, row) with the octahedral map's border wrapped: a step off an edge lands on
+// the mirrored texel of the same edge (the edge's two halves are the same directions), a corner
+// on the opposite corner (all four are the -Z pole).
+inline int WrappedTexel(int column, int row) {
+  constexpr int n = kVisibilityMapSize;
+  if (column < 0 || column >= n) {
+    column = column < 0 ? 0 : n - 1;
+    row = n - 1 - row;
+  }
+  if (row < 0 || row >= n) {
+    row = row < 0 ? 0 : n - 1;
+    column = n - 1 - column;
+  }
+  return row * n + column;
+}
+
+// The unit direction at octahedral coordinates (u, v) in [-1, 1]^2 (the inverse of
+// OctahedralEncode).
+inline Vec3d OctahedralDecode(double u, double v) {
+  Vec3d w(u, v, 1 - std::abs(u) - std::abs(v));
+  if (w.z < 0) {
+    w.x = (1 - std::abs(v)) * (u >= 0 ? 1 : -1);
+    w.y = (1 - std::abs(u)) * (v >= 0 ? 1 : -1);
+  }
+  return Normalize(w);
+}
+
+// The unit direction through the centre of texel t.
+inline Vec3d VisibilityTexelCentre(int t) {
+  const auto centre = [](int i) { return (i + 0.5) / kVisibilityMapSize * 2 - 1; };
+  return OctahedralDecode(centre(t % kVisibilityMapSize), centre(t / kVisibilityMapSize));
+}
+
+// The four texels around unit direction w, bilinear between texel centres, and their weights
+// (summing to 1).
+struct VisibilityTaps {
+  int texel[4];
+  double weight[4];
+};
+inline VisibilityTaps VisibilityBilinear(const Vec3d& w) {
+  double u, v;
+  OctahedralEncode(w, &u, &v);
+  const double fu = (u + 1) * 0.5 * kVisibilityMapSize - 0.5;
+  const double fv = (v + 1) * 0.5 * kVisibilityMapSize - 0.5;
+  const int i = int(std::floor(fu)), j = int(std::floor(fv));
+  const double a = fu - i, b = fv - j;
+  VisibilityTaps taps;
+  for (int k = 0; k < 4; ++k) {
+    const int di = k & 1, dj = k >> 1;
+    taps.texel[k] = WrappedTexel(i + di, j + dj);
+    taps.weight[k] = (di ? a : 1 - a) * (dj ? b : 1 - b);
+  }
+  return taps;
+}
+
+// The inverse first-hit distance s = 1 / t a ray adds to its texel's moments: 0 for a miss or a
+// hit beyond maxDistance (free as far as any sampler asks), t floored at 1e-6 maxDistance.
+// Why 1/t and not t: over a texel's footprint the distance to a plane varies as 1 / cos, without
+// bound at grazing angles, while 1/t is linear in the direction (dot(w, n) / h for the plane at
+// distance h with normal n), so a texel's mean is the plane's value at its rays' mean direction
+// and interpolation between texels stays on the plane.
+inline double InverseDistance(double t, double maxDistance) {
+  return t > maxDistance ? 0.0 : 1 / std::max(t, 1e-6 * maxDistance);
 }
 
 // The distance a miss counts as, and the cap on hits: twice the diagonal of a grid cell, farther
