@@ -18,14 +18,6 @@ namespace {
 constexpr double kCrush = 0.2;
 constexpr double kMinWeight = 1e-30;
 
-// The variance left at least, relative to the squared mean: a standard deviation of 1% of s,
-// so that a point on the surface a probe sees (s = mean within rounding) is not decided by it.
-constexpr double kMinRelativeVariance = 1e-4;
-
-double L1(const Vec3d& w) {
-  return std::abs(w.x) + std::abs(w.y) + std::abs(w.z);
-}
-
 }  // namespace
 
 ProbeSampler::ProbeSampler(const ProbeVolume& volume, ProbeSamplerOptions options)
@@ -37,40 +29,6 @@ ProbeSampler::ProbeSampler(const ProbeVolume& volume, ProbeSamplerOptions option
     for (int l = 0; l <= volume.shOrder; ++l)
       for (int m = -l; m <= l; ++m) bandFactor_[size_t(ShIndex(l, m))] = IrradianceBandFactor(l);
   }
-}
-
-double ProbeVisibility(const ProbeVolume& volume, int64_t probe, const Vec3d& probePos,
-                       const Vec3d& x) {
-  const Vec3d fromProbe = x - probePos;
-  const double d = Length(fromProbe);
-  if (!(d > 0)) return 1;
-  const Vec3d w = fromProbe / d;
-  // Each tap's moments of s = 1/t scaled to q = s / |c|_1 (c its centre direction): q is linear
-  // in the octahedral coordinates for a plane, so the bilinear blend stays on it, and s at w is
-  // the blend times |w|_1.
-  const VisibilityTaps taps = VisibilityBilinear(w);
-  double mean = 0, variance = 0, q[4];
-  for (int k = 0; k < 4; ++k) {
-    const float* m = &volume.visibility[size_t(taps.texel[k])][3 * size_t(probe)];
-    const double scale = 1 / L1(VisibilityTexelCentre(taps.texel[k]));
-    q[k] = scale * m[0];
-    mean += taps.weight[k] * q[k];
-    variance += taps.weight[k] * scale * scale * std::max(double(m[1]) - double(m[0]) * m[0], 0.0);
-  }
-  // Less the part of the texels' spread that the trend between them explains (a linear ramp
-  // across a texel has variance gradient^2 / 12 per axis): interpolated, it is no uncertainty.
-  const double wu = taps.weight[1] + taps.weight[3], wv = taps.weight[2] + taps.weight[3];
-  const double gu = (q[1] - q[0]) * (1 - wv) + (q[3] - q[2]) * wv;
-  const double gv = (q[2] - q[0]) * (1 - wu) + (q[3] - q[1]) * wu;
-  variance = std::max(variance - (gu * gu + gv * gv) / 12, kMinRelativeVariance * mean * mean);
-  const double scale = L1(w);
-  mean *= scale;
-  variance *= scale * scale;
-  const double s = 1 / d;
-  if (s >= mean) return 1;  // nearer than the surfaces the probe sees that way
-  const double excess = mean - s;
-  const double p = variance / (variance + excess * excess);
-  return p * p * p;
 }
 
 ProbeSample ProbeSampler::Sample(const Vec3d& position, const Vec3d& normal) const {

@@ -30,6 +30,7 @@
 
 #include "probebake/bake/probe_volume.h"
 #include "probebake/math/vec3.h"
+#include "probebake/volume/visibility_map.h"
 
 namespace probebake {
 
@@ -47,17 +48,6 @@ struct ProbeSample {
   std::vector<Vec3d> radianceSh;  // blended radiance SH, (L+1)^2 RGB coefficients
   int probes = 0;                 // probes that took part (0: no light known here, all zero)
 };
-
-// The visibility, in [0, 1], of point x from probe `probe` of `volume` (which must have
-// visibility moments) baked at probePos (grid point + offset). With s = 1/|x - probePos|: the
-// moments of the four texels around the direction to x, bilinear between texel centres in the
-// octahedral map (each texel's s scaled by 1 / |centre|_1, which makes a plane's s linear in the
-// map's coordinates, and the blend scaled back by |direction|_1); the variance is the texels'
-// own, less what the trend between them explains, and at least (1% of the mean)^2. Then 1 when
-// s >= mean (x nearer than the surfaces seen that way), else Chebyshev's one-sided bound
-// p = var / (var + (mean - s)^2), cubed as DDGI does.
-double ProbeVisibility(const ProbeVolume& volume, int64_t probe, const Vec3d& probePos,
-                       const Vec3d& x);
 
 class ProbeSampler {
  public:

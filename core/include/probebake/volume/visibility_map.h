@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "probebake/bake/probe_volume.h"
 #include "probebake/math/vec3.h"
 #include "probebake/scene/scene.h"
 
@@ -118,11 +119,63 @@ inline double InverseDistance(double t, double maxDistance) {
   return t > maxDistance ? 0.0 : 1 / std::max(t, 1e-6 * maxDistance);
 }
 
-// The distance a miss counts as, and the cap on hits: twice the diagonal of a grid cell, farther
-// than any point a sampler asks a probe about (at most a cell diagonal plus relocation offsets of
-// half a spacing each).
+// The distance beyond which a hit counts as a miss (s = 0): twice the diagonal of a grid cell,
+// farther than any point a sampler asks a probe about (at most a cell diagonal plus relocation
+// offsets of half a spacing each).
 inline double VisibilityMaxDistance(const ProbeGrid& grid) {
   return 2 * Length(grid.spacing);
+}
+
+// The variance ProbeVisibility leaves at least, relative to the squared mean: a standard
+// deviation of 1% of s, so that a point on a surface the probe sees (s = mean within rounding)
+// is not decided by rounding.
+inline constexpr double kVisibilityMinRelativeVariance = 1e-4;
+
+inline double VisibilityL1(const Vec3d& w) {
+  return std::abs(w.x) + std::abs(w.y) + std::abs(w.z);
+}
+
+// The visibility, in [0, 1], of point x from probe `probe` of `volume` (which must have
+// visibility moments) baked at probePos (grid point + offset). With s = 1/|x - probePos|: the
+// moments of the four texels around the direction to x, bilinear between texel centres in the
+// octahedral map (each texel's s scaled by 1 / |centre|_1, which makes a plane's s linear in the
+// map's coordinates, and the blend scaled back by |direction|_1); the variance is the texels'
+// own, less what the trend between them explains, and at least (1% of the mean)^2. Then 1 when
+// s >= mean (x nearer than the surfaces seen that way), else Chebyshev's one-sided bound
+// p = var / (var + (mean - s)^2), cubed as DDGI does.
+inline double ProbeVisibility(const ProbeVolume& volume, int64_t probe, const Vec3d& probePos,
+                              const Vec3d& x) {
+  const Vec3d fromProbe = x - probePos;
+  const double d = Length(fromProbe);
+  if (!(d > 0)) return 1;
+  const Vec3d w = fromProbe / d;
+  // Each tap's moments of s = 1/t scaled to q = s / |c|_1 (c its centre direction): q is linear
+  // in the octahedral coordinates for a plane, so the bilinear blend stays on it, and s at w is
+  // the blend times |w|_1.
+  const VisibilityTaps taps = VisibilityBilinear(w);
+  double mean = 0, variance = 0, q[4];
+  for (int k = 0; k < 4; ++k) {
+    const float* m = &volume.visibility[size_t(taps.texel[k])][3 * size_t(probe)];
+    const double scale = 1 / VisibilityL1(VisibilityTexelCentre(taps.texel[k]));
+    q[k] = scale * m[0];
+    mean += taps.weight[k] * q[k];
+    variance += taps.weight[k] * scale * scale * std::max(double(m[1]) - double(m[0]) * m[0], 0.0);
+  }
+  // Less the part of the texels' spread that the trend between them explains (a linear ramp
+  // across a texel has variance gradient^2 / 12 per axis): interpolated, it is no uncertainty.
+  const double wu = taps.weight[1] + taps.weight[3], wv = taps.weight[2] + taps.weight[3];
+  const double gu = (q[1] - q[0]) * (1 - wv) + (q[3] - q[2]) * wv;
+  const double gv = (q[2] - q[0]) * (1 - wu) + (q[3] - q[1]) * wu;
+  variance =
+      std::max(variance - (gu * gu + gv * gv) / 12, kVisibilityMinRelativeVariance * mean * mean);
+  const double scale = VisibilityL1(w);
+  mean *= scale;
+  variance *= scale * scale;
+  const double s = 1 / d;
+  if (s >= mean) return 1;  // nearer than the surfaces the probe sees that way
+  const double excess = mean - s;
+  const double p = variance / (variance + excess * excess);
+  return p * p * p;
 }
 
 }  // namespace probebake
