@@ -12,7 +12,7 @@
 //       baked (grid point + offset): probes behind the surface count less, never nothing;
 //     - visibility, with the volume's moments (the mean and mean square of the inverse
 //       first-hit distance s = 1/t in the direction from the probe to a point y at distance d,
-//       probebake/volume/visibility_map.h): ProbeVisibility below. It is taken at two points
+//       probebake/volume/visibility_map.h): ProbeVisibility there. It is taken at two points
 //       and the smaller kept: xb = x + n * normalBias * s (s the grid's smallest spacing; DDGI's
 //       normal bias, so that a surface does not ask a probe about its own plane), and x itself,
 //       so that a bias that crosses a thin wall cannot make the probes beyond it visible. Then
