@@ -361,10 +361,10 @@ TEST(SettingsJson, RoundTripsWithEveryFieldExplicit) {
     const absl::StatusOr<BakeJob> built = BuildFromData(Patched(kGridOnly, "settings", settings));
     ASSERT_TRUE(built.ok()) << built.status();
     const std::string& json = built->settingsJson;
-    // Every one of the 14 numeric/enum/bool fields is written, quality never.
+    // Every one of the 16 numeric/enum/bool fields is written, quality never.
     google::protobuf::Value value;
     ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(json, &value).ok()) << json;
-    EXPECT_EQ(value.struct_value().fields_size(), 14) << json;
+    EXPECT_EQ(value.struct_value().fields_size(), 16) << json;
     EXPECT_FALSE(value.struct_value().fields().contains("quality")) << json;
     EXPECT_TRUE(value.struct_value().fields().contains("targetRelError")) << json;
     EXPECT_TRUE(value.struct_value().fields().contains("irradiance")) << json;
