@@ -107,9 +107,9 @@ TEST(Relocation, AProbeDeepInsideASolidStaysInvalid) {
   EXPECT_EQ(v.stats.invalidProbes, 1);
 }
 
-TEST(Visibility, MomentsMeasureTheDistanceToAWall) {
+TEST(Visibility, MomentsMeasureTheInverseDistanceToAWall) {
   // A probe 0.3 in front of a large wall (the plane x = 0.3, facing -x) under a sky. Rays toward
-  // +x hit it at 0.3 / cos(angle to +x); the others miss and count as the maximum distance.
+  // +x hit it at 0.3 / cos(angle to +x), adding s = cos / 0.3; the others miss and add 0.
   BakeJob job = MakeJob(1, 4096, {0, 0, 0});
   job.settings.batches = 4;
   job.settings.visibility = true;
@@ -118,19 +118,19 @@ TEST(Visibility, MomentsMeasureTheDistanceToAWall) {
   AddQuad(&job.scene, {0.3, -100, -100}, {0.3, -100, 100}, {0.3, 100, 100}, {0.3, 100, -100}, grey);
   const ProbeVolume v = BakeOrDie(job);
   ASSERT_EQ(v.visibility.size(), size_t(kVisibilityTexels));
-  const double maxDistance = VisibilityMaxDistance(job.grid);
   double rays = 0;
   for (int t = 0; t < kVisibilityTexels; ++t) rays += v.visibility[t][2];
   EXPECT_EQ(rays, 4096);
-  const int facing = VisibilityTexel({1, 0, 0});
-  const float* m = &v.visibility[facing][0];
-  // The texel around +x spans at most ~35 degrees from it: distances in [0.3, 0.3 / cos 35deg].
-  EXPECT_GE(m[0], 0.3f);
-  EXPECT_LE(m[0], float(0.3 / std::cos(35 * kPi / 180)));
-  EXPECT_GE(m[1], m[0] * m[0] * (1 - 1e-6f));  // mean of squares >= square of mean
+  // The texel around +x holds directions at most ~35 degrees from it: s in [cos 35deg, 1] / 0.3,
+  // so its mean too; its mean square is at least the mean's square.
+  const float* m = &v.visibility[VisibilityTexel({1, 0, 0})][0];
+  EXPECT_LE(m[0], float(1 / 0.3) * (1 + 1e-6f));
+  EXPECT_GE(m[0], float(std::cos(35 * kPi / 180) / 0.3));
+  EXPECT_GE(m[1], m[0] * m[0] * (1 - 1e-6f));
   const float* away = &v.visibility[VisibilityTexel({-1, 0, 0})][0];
-  EXPECT_EQ(away[0], float(maxDistance));
-  EXPECT_EQ(away[1], float(maxDistance * maxDistance));
+  EXPECT_EQ(away[0], 0.0f);
+  EXPECT_EQ(away[1], 0.0f);
+  EXPECT_GT(away[2], 0.0f);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <numbers>
 
 #include "engine_test_util.h"
@@ -12,6 +13,7 @@
 #include "probebake/sh/sh_basis.h"
 #include "probebake/sh/sh_convolution.h"
 #include "probebake/volume/vdb_io.h"
+#include "probebake/volume/visibility_map.h"
 #include "volume/test_volumes.h"
 
 namespace probebake::testing {
@@ -103,6 +105,71 @@ TEST(ProbeTextures, ExportDecodesToTheCoreIrradianceWithinTheQuantisationBound) 
   EXPECT_GT(usable, 10);
   EXPECT_GT(unusable, 0);
   std::printf("textures: %d usable texels, worst error / bound %.3g\n", usable, worstRatio);
+}
+
+TEST(ProbeTextures, OffsetsFilledFlagsAndVisibilityAreCarried) {
+  ProbeVolume volume = PlausibleVolume(5);
+  const size_t texels = static_cast<size_t>(volume.grid.ProbeCount());
+  volume.offset.assign(3 * texels, 0.0f);
+  volume.filled.assign(texels, 0.0f);
+  volume.visibility.assign(kVisibilityTexels, std::vector<float>(3 * texels, 0.0f));
+  int filledProbes = 0;
+  for (size_t p = 0; p < texels; ++p) {
+    if (!volume.active[p]) continue;
+    for (int a = 0; a < 3; ++a) volume.offset[3 * p + a] = 0.01f * float(p % 7) - 0.02f * float(a);
+    if (volume.validity[p] < 0.5f) {
+      volume.filled[p] = 1;
+      ++filledProbes;
+    }
+    for (int t = 0; t < kVisibilityTexels; ++t)
+      for (int ch = 0; ch < 3; ++ch)
+        volume.visibility[t][3 * p + ch] = 1e4f / float(1 + t + 3 * int(p) + ch);  // > half's max
+  }
+  ASSERT_GT(filledProbes, 0) << "the volume must have probes to fill";
+  const absl::StatusOr<ProbeTextures> packed = PackProbeTextures(volume, "x.bin");
+  ASSERT_TRUE(packed.ok()) << packed.status();
+  const google::protobuf::Struct header = ParseJson(packed->headerJson);
+  EXPECT_EQ(header.fields().at("version").number_value(), 2);
+  const auto& textures = header.fields().at("textures").list_value();
+  ASSERT_EQ(textures.values_size(), 10);
+  const auto& offsetTexture = textures.values(8).struct_value().fields();
+  const auto& atlas = textures.values(9).struct_value().fields();
+  EXPECT_EQ(offsetTexture.at("name").string_value(), "offset_filled");
+  EXPECT_EQ(atlas.at("name").string_value(), "visibility");
+  EXPECT_EQ(atlas.at("format").string_value(), "RGBA32F");
+  const auto& size = atlas.at("size").list_value();
+  ASSERT_EQ(size.values_size(), 3);
+  const size_t nx = size_t(size.values(0).number_value()),
+               ny = size_t(size.values(1).number_value());
+  EXPECT_EQ(nx, 8u * size_t(volume.grid.counts[0]));
+  EXPECT_EQ(ny, 8u * size_t(volume.grid.counts[1]));
+  EXPECT_EQ(size.values(2).number_value(), volume.grid.counts[2]);
+  const size_t offsetAt = size_t(offsetTexture.at("offset").number_value());
+  const size_t atlasAt = size_t(atlas.at("offset").number_value());
+  EXPECT_EQ(atlas.at("bytes").number_value(), 16.0 * 64 * double(texels));
+  ASSERT_EQ(packed->bin.size(), atlasAt + 16 * 64 * texels);
+  const std::string bin(packed->bin.begin(), packed->bin.end());
+  for (size_t p = 0; p < texels; ++p) {
+    if (!volume.active[p]) continue;
+    // Filled probes are usable: alpha 1 in L0_validity.
+    EXPECT_EQ(Half(bin, 8 * p + 6), 1.0) << p;
+    for (int a = 0; a < 3; ++a)
+      EXPECT_EQ(Half(bin, offsetAt + 8 * p + 2 * size_t(a)),
+                float(Imath::half(volume.offset[3 * p + size_t(a)])))
+          << p;
+    EXPECT_EQ(Half(bin, offsetAt + 8 * p + 6), volume.filled[p]) << p;
+    int i, j, k;
+    volume.grid.Coords(int64_t(p), &i, &j, &k);
+    for (int t = 0; t < kVisibilityTexels; ++t) {
+      const size_t x = 8 * size_t(i) + size_t(t % 8), y = 8 * size_t(j) + size_t(t / 8);
+      const size_t at = atlasAt + 16 * ((size_t(k) * ny + y) * nx + x);
+      for (int ch = 0; ch < 3; ++ch) {
+        float v;
+        std::memcpy(&v, &bin[at + 4 * size_t(ch)], 4);  // little-endian host
+        EXPECT_EQ(v, volume.visibility[size_t(t)][3 * p + size_t(ch)]) << p << " texel " << t;
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -119,7 +119,7 @@ TEST(PyOpenVdb, ReadsGridsValuesTransformAndMetadata) {
   }
   json.pop_back();
   json += "],\"metadata\":{";
-  json += "\"probebake_format\":[\"int\",3],\"sh_order\":[\"int\",2],";
+  json += "\"probebake_format\":[\"int\",4],\"sh_order\":[\"int\",2],";
   json += "\"sh_basis\":[\"str\",\"real-orthonormal-condon-shortley-zpolar\"],";
   json += "\"sh_window\":[\"str\",\"HANNING\"],\"quantity\":[\"str\",\"radiance\"],";
   json += "\"has_irradiance\":[\"bool\",true],\"color_space\":[\"str\",\"linear-rec709\"],";

@@ -129,7 +129,7 @@ INSTANTIATE_TEST_SUITE_P(
                       RoundTripCase{"L1EveryProbeInactive", {2, 3, 2}, 1, false, 1}),
     [](const ::testing::TestParamInfo<RoundTripCase>& param) { return param.param.name; });
 
-// Format 3's optional grids: relocation offsets, dilation flags and the 64 visibility planes.
+// Format 4's optional grids: relocation offsets, dilation flags and the 64 visibility planes.
 TEST(VdbIo, OffsetsFilledFlagsAndVisibilityReadBackBitIdentical) {
   TestVolumeSpec spec;
   ProbeVolume volume = MakeTestVolume(spec);
@@ -204,7 +204,7 @@ TEST(VdbIo, RawMetadataHoldsEveryKeyAsText) {
   const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
   ASSERT_TRUE(read.ok()) << read.status();
   const std::map<std::string, std::string> expected = {
-      {"probebake_format", "3"},
+      {"probebake_format", "4"},
       {"has_offset", "false"},
       {"has_filled", "false"},
       {"visibility_size", "0"},

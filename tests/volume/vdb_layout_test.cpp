@@ -17,6 +17,7 @@
 #include <openvdb/openvdb.h>
 
 #include "probebake/volume/vdb_io.h"
+#include "probebake/volume/visibility_map.h"
 #include "volume/test_volumes.h"
 
 namespace probebake {
@@ -221,7 +222,7 @@ TEST_F(VdbLayout, FileMetadataKeysTypesAndValues) {
     ASSERT_TRUE(value) << key.name;
     EXPECT_EQ(value->typeName(), key.type) << key.name;
   }
-  EXPECT_EQ(meta->metaValue<int32_t>("probebake_format"), 3);
+  EXPECT_EQ(meta->metaValue<int32_t>("probebake_format"), 4);
   EXPECT_EQ(meta->metaValue<int32_t>("sh_order"), 2);
   EXPECT_EQ(meta->metaValue<std::string>("sh_basis"), "real-orthonormal-condon-shortley-zpolar");
   EXPECT_EQ(meta->metaValue<std::string>("sh_window"), "HANNING");
@@ -308,8 +309,8 @@ TEST_F(VdbLayout, ReaderRejectsBrokenFilesNamingTheGridOrKey) {
   {  // a format this reader does not know
     vdb::MetaMap::Ptr m = meta->copyMeta();
     m->removeMeta("probebake_format");
-    m->insertMeta("probebake_format", vdb::Int32Metadata(4));
-    expectError(WriteAndRead(good, *m), "probebake_format", "this reader knows 1 to 3");
+    m->insertMeta("probebake_format", vdb::Int32Metadata(5));
+    expectError(WriteAndRead(good, *m), "probebake_format", "this reader knows 1 to 4");
   }
   {  // format 1 has no std_error_l0 grid: one is not part of it
     vdb::MetaMap::Ptr m = meta->copyMeta();
@@ -526,6 +527,33 @@ TEST_F(VdbLayout, ReadsFormatTwoFiles) {
   EXPECT_TRUE(read->volume.visibility.empty());
 }
 
+TEST_F(VdbLayout, ReadsFormatThreeFilesWithoutTheirDistanceMoments) {
+  // A format-3 file has format 4's grids, but its visibility planes hold distance moments, not
+  // inverse ones: read, the volume keeps its offsets and drops the moments.
+  ProbeVolume volume = volume_;
+  const size_t probes = volume.active.size();
+  volume.offset.assign(3 * probes, 0.0f);
+  volume.visibility.assign(kVisibilityTexels, std::vector<float>(3 * probes, 0.0f));
+  for (size_t p = 0; p < probes; ++p)
+    if (volume.active[p]) volume.offset[3 * p] = 0.25f;
+  const std::string written = dir_.File("format4.vdb");
+  PB_ASSERT_OK(WriteProbeVolume(written, volume, MakeTestMetadata()));
+  vdb::io::File file(written);
+  file.open(false);
+  const vdb::MetaMap::Ptr meta = file.getMetadata();
+  const vdb::GridPtrVec grids = *file.getGrids();
+  file.close();
+  meta->removeMeta("probebake_format");
+  meta->insertMeta("probebake_format", vdb::Int32Metadata(3));
+  const std::string path = dir_.File("format3.vdb");
+  vdb::io::File(path).write(grids, *meta);
+  const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->format, 3);
+  EXPECT_EQ(read->volume.offset, volume.offset);
+  EXPECT_TRUE(read->volume.visibility.empty());
+}
+
 TEST_F(VdbLayout, ReadsFormatOneFiles) {
   // A format-1 file: the same grids but std_error_l0, its std_error holding the L0 figure
   // (docs/volume-format.md, migration notes). It reads as that figure in stdErrorL0, with the
@@ -555,12 +583,12 @@ TEST_F(VdbLayout, ReadsFormatOneFiles) {
       EXPECT_EQ(v.stdError[p], 0.0f) << p;
     }
   }
-  // Written back, it is a format-3 file that says as much.
-  const std::string again = dir_.File("format3.vdb");
+  // Written back, it is a format-4 file that says as much.
+  const std::string again = dir_.File("format4.vdb");
   PB_ASSERT_OK(WriteProbeVolume(again, v, read->meta));
   const absl::StatusOr<ProbeVolumeFile> reread = ReadProbeVolume(again);
   ASSERT_TRUE(reread.ok()) << reread.status();
-  EXPECT_EQ(reread->format, 3);
+  EXPECT_EQ(reread->format, 4);
   EXPECT_EQ(reread->volume.stdErrorL0, volume_.stdError);
 }
 

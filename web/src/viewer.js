@@ -20,11 +20,14 @@ const textureUniforms = {
   pbL2Scale: { value: header.l2Scale },
 };
 for (const t of header.textures) {
-  const half = t.format === 'RGBA16F';
-  const texels = half ? new Uint16Array(bin.buffer, t.offset, t.bytes / 2) : new Uint8Array(bin.buffer, t.offset, t.bytes);
-  const texture = new THREE.Data3DTexture(texels, nx, ny, nz);
+  const half = t.format === 'RGBA16F', float = t.format === 'RGBA32F';
+  const texels = half ? new Uint16Array(bin.buffer, t.offset, t.bytes / 2)
+    : float ? new Float32Array(bin.buffer, t.offset, t.bytes / 4)
+      : new Uint8Array(bin.buffer, t.offset, t.bytes);
+  const [sx, sy, sz] = t.size || [nx, ny, nz];  // the visibility atlas has its own size
+  const texture = new THREE.Data3DTexture(texels, sx, sy, sz);
   texture.format = THREE.RGBAFormat;
-  texture.type = half ? THREE.HalfFloatType : THREE.UnsignedByteType;
+  texture.type = half ? THREE.HalfFloatType : float ? THREE.FloatType : THREE.UnsignedByteType;
   texture.minFilter = texture.magFilter = THREE.NearestFilter;
   texture.unpackAlignment = 1;
   texture.needsUpdate = true;
@@ -152,16 +155,22 @@ function ramp(t) {
 function applyOverlay(mode) {
   const legend = document.getElementById('legend');
   const maxSamples = Math.max(1, ...data.probes.map((p) => p.sampleCount));
+  const maxOffset = Math.max(1e-9, ...data.probes.map((p) => p.offset));
   for (const { material, probe } of probeMaterials) {
     const u = material.uniforms;
     u.useFlat.value = mode === 'sh' ? 0 : 1;
-    if (mode === 'validity') u.flatColor.value = probe.validity >= 0.5 ? new THREE.Vector3(0.1, 0.9, 0.2) : new THREE.Vector3(0.95, 0.1, 0.1);
+    if (mode === 'validity') {
+      u.flatColor.value = probe.validity >= 0.5 ? new THREE.Vector3(0.1, 0.9, 0.2)
+        : probe.filled ? new THREE.Vector3(0.95, 0.85, 0.1) : new THREE.Vector3(0.95, 0.1, 0.1);
+    }
+    if (mode === 'offset') u.flatColor.value = probe.offset > 0 ? ramp(probe.offset / maxOffset) : new THREE.Vector3(0.5, 0.5, 0.5);
     if (mode === 'stdError') u.flatColor.value = probe.stdError < 0 ? new THREE.Vector3(1, 0, 1) : ramp(probe.stdError / 0.1);
     if (mode === 'sampleCount') u.flatColor.value = ramp(probe.sampleCount / maxSamples);
   }
   legend.textContent = {
     sh: `exposure ${data.exposure.toPrecision(3)}`,
-    validity: 'green valid, red invalid',
+    validity: 'green valid, yellow invalid and filled by dilation, red invalid',
+    offset: `grey not moved; blue to red: relocation offset up to ${maxOffset.toPrecision(3)}`,
     stdError: 'blue 0 to red >= 10% relative std error; magenta unknown',
     sampleCount: `blue 0 to red ${maxSamples} samples`,
   }[mode];

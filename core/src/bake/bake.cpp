@@ -20,6 +20,7 @@
 #include "probe_integrator.h"
 #include "probe_relocation.h"
 #include "probe_site.h"
+#include "probebake/bake/probe_dilation.h"
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
 #include "probebake/sampling/hash.h"
@@ -652,6 +653,12 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
     return absl::CancelledError("bake cancelled");
   }
 
+  if (settings.relocationMaxOffset > 0) {
+    volume.filled.assign(size_t(probeCount), 0.0f);
+    const int64_t filled = DilateProbes(&volume);
+    if (filled > 0)
+      log->info("dilation: {} probes left inside geometry filled from neighbours", filled);
+  }
   FinishVolume(list.Active(), counters, threads, start, &volume);
   reporter.Stop(/*checkpoint=*/false);
   log->info("baked {} probes in {:.3f} s: {} samples, {} rays ({:.2f} Mrays/s)", list.Active(),

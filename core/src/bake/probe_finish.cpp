@@ -179,12 +179,11 @@ double ProbeFinisher::Finish(const ProbeEstimate& estimate, int batches, int64_t
   volume->sampleCount[probe] = float(estimate.Samples(batches));
   if (!volume->visibility.empty()) {
     const std::vector<double> m = estimate.Moments(batches);
-    const double maxDistance = VisibilityMaxDistance(volume->grid);
     for (int t = 0; t < kVisibilityTexels; ++t) {
       const double n = m[3 * t + 2];
       float* out = &volume->visibility[t][3 * size_t(probe)];
-      out[0] = float(n > 0 ? m[3 * t] / n : maxDistance);
-      out[1] = float(n > 0 ? m[3 * t + 1] / n : maxDistance * maxDistance);
+      out[0] = float(n > 0 ? m[3 * t] / n : 0.0);
+      out[1] = float(n > 0 ? m[3 * t + 1] / n : 0.0);
       out[2] = float(n);
     }
   }

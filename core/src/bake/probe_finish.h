@@ -55,7 +55,8 @@ class ProbeEstimate {
     if (moments_.empty()) return {};
     return {moments_.data() + size_t(b) * kMomentsSize, size_t(kMomentsSize)};
   }
-  // The first `batches` batches' moments summed in batch order: per texel (sum d, sum d^2, rays).
+  // The first `batches` batches' moments summed in batch order: per texel (sum 1/t, sum 1/t^2,
+  // rays).
   std::vector<double> Moments(int batches) const;
   // Adds an exactly known term radiance * Y(wi) (a delta light seen from the probe).
   void AddExact(int order, const Vec3d& wi, const Vec3d& radiance);
@@ -92,8 +93,8 @@ class ProbeFinisher {
   std::string WindowName() const;
   // Stores the estimate of the first `batches` batches as probe `probe` of `volume` (radiance,
   // irradiance and window when requested, std_error, std_error_l0, sample_count, and the
-  // visibility moments when the volume has them: per texel mean d, mean d^2 and the ray count;
-  // a texel no ray went through reads as all free, (maxDistance, maxDistance^2, 0)). Returns the
+  // visibility moments when the volume has them: per texel mean 1/t, mean 1/t^2 and the ray
+  // count; a texel no ray went through reads as all free, (0, 0, 0)). Returns the
   // AUTO window's heat parameter t chosen for this probe (0: left unwindowed; 0 for other windows).
   double Finish(const ProbeEstimate& estimate, int batches, int64_t probe,
                 ProbeVolume* volume) const;

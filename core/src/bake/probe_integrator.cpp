@@ -817,10 +817,10 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
     if (MaxComponent(radiance) > 0) Project(order, g.wi[j], radiance / probe.pdf, sum);
     const std::span<double> moments = work[g.batch[j]].moments;
     if (!moments.empty()) {
-      const double d = std::min(g.path[j].firstHit, work[g.batch[j]].maxDistance);
+      const double s = InverseDistance(g.path[j].firstHit, work[g.batch[j]].maxDistance);
       double* m = &moments[3 * size_t(VisibilityTexel(g.wi[j]))];
-      m[0] += d;
-      m[1] += d * d;
+      m[0] += s;
+      m[1] += s * s;
       m[2] += 1;
     }
   }

@@ -108,8 +108,9 @@ class ProbeIntegrator {
 
   // One batch of TraceBatches: its sample count and the sum its samples add to; and, when not
   // empty, the visibility moments its probe rays add to (probebake/volume/visibility_map.h):
-  // per texel the sum of first-hit distances (capped at maxDistance, a miss counting as
-  // maxDistance), of their squares, and the ray count, in sample order.
+  // per texel the sum of inverse first-hit distances (InverseDistance(t, maxDistance): a miss
+  // or a hit beyond maxDistance counting as 0), of their squares, and the ray count, in sample
+  // order.
   struct BatchWork {
     int64_t count = 0;
     std::span<double> sum;

@@ -28,14 +28,17 @@ absl::StatusOr<std::vector<EngineProbe>> EngineProbes(const ProbeVolume& volume)
     EngineProbe probe;
     probe.index = static_cast<int64_t>(p);
     g.Coords(probe.index, &probe.i, &probe.j, &probe.k);
-    probe.position = g.Position(probe.i, probe.j, probe.k);
+    if (volume.offset.size() == 3 * n)
+      probe.offset = {volume.offset[3 * p], volume.offset[3 * p + 1], volume.offset[3 * p + 2]};
+    probe.position = g.Position(probe.i, probe.j, probe.k) + probe.offset;
     for (int c = 0; c < coeffs; ++c)
       probe.radiance[c] = {volume.radiance[c][3 * p], volume.radiance[c][3 * p + 1],
                            volume.radiance[c][3 * p + 2]};
     probe.validity = volume.validity[p];
     probe.stdError = p < volume.stdError.size() ? volume.stdError[p] : 0.0f;
     probe.sampleCount = p < volume.sampleCount.size() ? volume.sampleCount[p] : 0.0f;
-    probe.usable = probe.validity >= 0.5f;
+    probe.filled = volume.filled.size() == n && volume.filled[p] > 0.5f;
+    probe.usable = probe.validity >= 0.5f || probe.filled;
     probes.push_back(probe);
   }
   return probes;

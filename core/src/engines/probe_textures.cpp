@@ -4,15 +4,23 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "probebake/engines/engine_export.h"
 #include "probebake/engines/engine_probes.h"
+#include "probebake/volume/visibility_map.h"
 
 namespace probebake {
 namespace {
+
+void PutFloat(std::vector<uint8_t>* bin, size_t at, float v) {
+  uint32_t bits;
+  std::memcpy(&bits, &v, sizeof bits);
+  for (int b = 0; b < 4; ++b) (*bin)[at + b] = static_cast<uint8_t>(bits >> (8 * b));
+}
 
 void PutHalf(std::vector<uint8_t>* bin, size_t at, double v) {
   const uint16_t bits = Imath::half(static_cast<float>(v)).bits();
@@ -42,9 +50,33 @@ absl::StatusOr<ProbeTextures> PackProbeTextures(const ProbeVolume& volume,
   out.l2Scale = l2Max > 0 ? l2Max : 1;
 
   const size_t halfBytes = texels * 8, byteBytes = texels * 4;
-  out.bin.assign(4 * halfBytes + 4 * byteBytes, 0);
+  const bool offsets = volume.offset.size() == 3 * texels;
+  const bool moments = volume.visibility.size() == size_t(kVisibilityTexels);
+  const size_t core = 4 * halfBytes + 4 * byteBytes;
+  const size_t offsetAt = core, momentsAt = core + (offsets ? halfBytes : 0);
+  const size_t momentsBytes = moments ? texels * kVisibilityTexels * 16 : 0;
+  out.bin.assign(momentsAt + momentsBytes, 0);
   // Unusable texels: half zeros are 0 bits; L2 bytes encode 0 as 128 (q for v = 0 rounds up).
-  std::fill(out.bin.begin() + 4 * halfBytes, out.bin.end(), uint8_t{128});
+  std::fill(out.bin.begin() + 4 * halfBytes, out.bin.begin() + core, uint8_t{128});
+  if (offsets)
+    for (const EngineProbe& p : *probes) {
+      const size_t at = offsetAt + 8 * static_cast<size_t>(p.index);
+      for (int a = 0; a < 3; ++a) PutHalf(&out.bin, at + 2 * a, p.offset[a]);
+      PutHalf(&out.bin, at + 6, p.filled ? 1.0 : 0.0);
+    }
+  if (moments)
+    for (const EngineProbe& p : *probes) {
+      const size_t probe = static_cast<size_t>(p.index);
+      for (int t = 0; t < kVisibilityTexels; ++t) {
+        const size_t x = size_t(kVisibilityMapSize * p.i + t % kVisibilityMapSize);
+        const size_t y = size_t(kVisibilityMapSize * p.j + t / kVisibilityMapSize);
+        const size_t nx = size_t(kVisibilityMapSize * g.counts[0]);
+        const size_t ny = size_t(kVisibilityMapSize * g.counts[1]);
+        const size_t at = momentsAt + 16 * ((size_t(p.k) * ny + y) * nx + x);
+        for (int ch = 0; ch < 3; ++ch)
+          PutFloat(&out.bin, at + 4 * size_t(ch), volume.visibility[size_t(t)][3 * probe + ch]);
+      }
+    }
   for (const EngineProbe& p : *probes) {
     if (!p.usable) continue;
     const size_t t = static_cast<size_t>(p.index);
@@ -63,7 +95,7 @@ absl::StatusOr<ProbeTextures> PackProbeTextures(const ProbeVolume& volume,
 
   std::string& h = out.headerJson;
   absl::StrAppendFormat(&h,
-                        "{\"format\":\"probebake-probe-textures\",\"version\":1,"
+                        "{\"format\":\"probebake-probe-textures\",\"version\":2,"
                         "\"counts\":[%d,%d,%d],\"origin\":[%.17g,%.17g,%.17g],"
                         "\"spacing\":[%.17g,%.17g,%.17g],\"l2Scale\":%.9g,\"bin\":\"%s\","
                         "\"textures\":[",
@@ -77,6 +109,18 @@ absl::StatusOr<ProbeTextures> PackProbeTextures(const ProbeVolume& volume,
                           i ? "," : "", names[i], i < 4 ? "RGBA16F" : "RGBA8", offset, bytes);
     offset += bytes;
   }
+  if (offsets) {
+    absl::StrAppendFormat(
+        &h, ",{\"name\":\"offset_filled\",\"format\":\"RGBA16F\",\"offset\":%d,\"bytes\":%d}",
+        offset, halfBytes);
+    offset += halfBytes;
+  }
+  if (moments)
+    absl::StrAppendFormat(&h,
+                          ",{\"name\":\"visibility\",\"format\":\"RGBA32F\",\"offset\":%d,"
+                          "\"bytes\":%d,\"size\":[%d,%d,%d]}",
+                          offset, momentsBytes, kVisibilityMapSize * g.counts[0],
+                          kVisibilityMapSize * g.counts[1], g.counts[2]);
   h += "]}\n";
   return out;
 }

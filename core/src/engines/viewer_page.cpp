@@ -66,8 +66,11 @@ absl::StatusOr<std::string> ViewerPageHtml(const ProbeVolume& volume, const Scen
       if (c) data += ",";
       AppendVec(&data, sh[c]);
     }
-    absl::StrAppendFormat(&data, "],\"validity\":%.9g,\"stdError\":%.9g,\"sampleCount\":%.9g}",
-                          p.validity, JsonNumber(p.stdError), p.sampleCount);
+    absl::StrAppendFormat(&data,
+                          "],\"validity\":%.9g,\"filled\":%s,\"offset\":%.9g,\"stdError\":%.9g,"
+                          "\"sampleCount\":%.9g}",
+                          p.validity, p.filled ? "true" : "false", Length(p.offset),
+                          JsonNumber(p.stdError), p.sampleCount);
   }
   data += "],\"meshes\":[";
   if (scene) {
@@ -109,7 +112,7 @@ absl::StatusOr<std::string> ViewerPageHtml(const ProbeVolume& volume, const Scen
       "background:rgba(0,0,0,.6);padding:6px 8px;border-radius:4px}</style></head><body>\n"
       "<div id=\"ui\">probebake view &middot; probes: <select id=\"overlay\">"
       "<option value=\"sh\">irradiance (SH)</option><option value=\"validity\">validity</option>"
-      "<option value=\"stdError\">std_error</option>"
+      "<option value=\"offset\">offset</option><option value=\"stdError\">std_error</option>"
       "<option value=\"sampleCount\">sample count</option></select>"
       " <label><input type=\"checkbox\" id=\"showProbes\" checked> probes</label>"
       " <span id=\"legend\"></span></div>\n"

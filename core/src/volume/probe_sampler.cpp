@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
-#include <cstdlib>
 
 #include "probebake/sh/sh_basis.h"
 #include "probebake/sh/sh_convolution.h"
@@ -31,22 +29,6 @@ ProbeSampler::ProbeSampler(const ProbeVolume& volume, ProbeSamplerOptions option
     for (int l = 0; l <= volume.shOrder; ++l)
       for (int m = -l; m <= l; ++m) bandFactor_[size_t(ShIndex(l, m))] = IrradianceBandFactor(l);
   }
-}
-
-double ProbeSampler::Chebyshev(int64_t probe, const Vec3d& probePos, const Vec3d& x) const {
-  const Vec3d fromProbe = x - probePos;
-  const double d = Length(fromProbe);
-  if (!(d > 0)) return 1;
-  // The texel holding the direction, unfiltered. (Bilinear filtering between texel centres, as
-  // DDGI samples its depth maps, leaked more through the thin wall of the leak test: a texel's
-  // neighbours see the wall at grazing angles, farther.)
-  const float* m = &volume_.visibility[size_t(VisibilityTexel(fromProbe / d))][3 * size_t(probe)];
-  const double mean = m[0], meanSq = m[1];
-  if (d <= mean) return 1;
-  const double variance = std::abs(meanSq - mean * mean);
-  const double excess = d - mean;
-  const double p = variance / (variance + excess * excess);
-  return p * p * p;
 }
 
 ProbeSample ProbeSampler::Sample(const Vec3d& position, const Vec3d& normal) const {
@@ -96,17 +78,12 @@ ProbeSample ProbeSampler::Sample(const Vec3d& position, const Vec3d& normal) con
       w *= h * h + 0.2;
     }
     if (visibility) {
-      w *= std::min(Chebyshev(p, probePos, biased), Chebyshev(p, probePos, position));
+      w *= std::min(ProbeVisibility(volume_, p, probePos, biased),
+                    ProbeVisibility(volume_, p, probePos, position));
       w = std::max(w, kMinWeight);
       if (w < kCrush) w *= w * w / (kCrush * kCrush);
     }
     w *= trilinear;
-    if (getenv("SAMPLER_DEBUG"))
-      std::fprintf(stderr, "  probe (%g %g %g) tri %g chebB %g chebP %g w %g E0 %g\n", probePos.x,
-                   probePos.y, probePos.z, trilinear,
-                   visibility ? Chebyshev(p, probePos, biased) : -1,
-                   visibility ? Chebyshev(p, probePos, position) : -1, w,
-                   volume_.radiance[0][3 * size_t(p)]);
     total += w;
     ++out.probes;
     for (int i = 0; i < coeffs; ++i) {

@@ -212,8 +212,8 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
 
   int32_t format = 0;
   PB_RETURN_IF_ERROR(meta.Get(kKeyFormat, &format));
-  if (format != kProbeVolumeFormat && format != kProbeVolumeFormat2 &&
-      format != kProbeVolumeFormat1) {
+  if (format != kProbeVolumeFormat && format != kProbeVolumeFormat3 &&
+      format != kProbeVolumeFormat2 && format != kProbeVolumeFormat1) {
     return meta.Error(kKeyFormat, std::to_string(format) + ", this reader knows " +
                                       std::to_string(kProbeVolumeFormat1) + " to " +
                                       std::to_string(kProbeVolumeFormat));
@@ -259,10 +259,10 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
   expected.push_back({kStdErrorGridName, false});
   if (format != kProbeVolumeFormat1) expected.push_back({kStdErrorL0GridName, false});
   expected.push_back({kSampleCountGridName, false});
-  // Format 3's optional grids, announced by its metadata.
+  // Format 3's and 4's optional grids, announced by their metadata.
   bool hasOffset = false, hasFilled = false;
   int32_t visibilitySize = 0;
-  if (format >= kProbeVolumeFormat) {
+  if (format >= kProbeVolumeFormat3) {
     PB_RETURN_IF_ERROR(meta.Get(kKeyHasOffset, &hasOffset));
     PB_RETURN_IF_ERROR(meta.Get(kKeyHasFilled, &hasFilled));
     PB_RETURN_IF_ERROR(meta.Get(kKeyVisibilitySize, &visibilitySize));
@@ -496,6 +496,8 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
   for (int t = 0; t < visibilityTexels; ++t) {
     PB_RETURN_IF_ERROR(readInto(VisibilityGridName(t), vecTag, 3, &volume.visibility[size_t(t)]));
   }
+  // Format 3's moments are of distances, which no sampler here reads: a volume without them.
+  if (format == kProbeVolumeFormat3) volume.visibility.clear();
   return result;
 }
 

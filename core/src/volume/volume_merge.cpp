@@ -1,5 +1,7 @@
 #include "probebake/volume/volume_merge.h"
 
+#include "probebake/bake/probe_dilation.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -155,12 +157,22 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
         same = same && SameBits(to, from);
         to = from;
       };
+      // Dilated values are recomputed below from the merged neighbours (a part saw only its
+      // own): not compared.
+      const bool refilled = !out.filled.empty() && !(v.validity[p] >= 0.5f);
+      auto putBaked = [&](float& to, float from) {
+        if (refilled) {
+          to = from;
+        } else {
+          put(to, from);
+        }
+      };
       const bool seen = out.active[q] != 0;
       put(out.validity[q], v.validity[p]);
       put(out.stdError[q], v.stdError[p]);
       put(out.stdErrorL0[q], v.stdErrorL0[p]);
       put(out.sampleCount[q], v.sampleCount[p]);
-      if (!out.filled.empty()) put(out.filled[q], v.filled[p]);
+      if (!out.filled.empty()) putBaked(out.filled[q], v.filled[p]);
       for (int ch = 0; ch < 3; ++ch) {
         if (!out.offset.empty()) put(out.offset[3 * q + ch], v.offset[3 * p + ch]);
         for (size_t t = 0; t < out.visibility.size(); ++t)
@@ -168,9 +180,9 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
       }
       for (int c = 0; c < coeffs; ++c) {
         for (int ch = 0; ch < 3; ++ch) {
-          put(out.radiance[c][3 * q + ch], v.radiance[c][3 * p + ch]);
+          putBaked(out.radiance[c][3 * q + ch], v.radiance[c][3 * p + ch]);
           if (!out.irradiance.empty())
-            put(out.irradiance[c][3 * q + ch], v.irradiance[c][3 * p + ch]);
+            putBaked(out.irradiance[c][3 * q + ch], v.irradiance[c][3 * p + ch]);
         }
       }
       if (seen && !same)
@@ -198,6 +210,7 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
     }
   }
   if (autoWindow) out.window = AutoWindowSummary(windowed, autoProbes, maxT);
+  if (!out.filled.empty()) DilateProbes(&out);
   // As a bake counts them, over the merged volume: parts that overlap hold some probes twice.
   for (int64_t q = 0; q < probeCount; ++q) {
     if (!out.active[q]) continue;

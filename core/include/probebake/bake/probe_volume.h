@@ -45,11 +45,11 @@ struct ProbeVolume {
   // that was not moved.
   std::vector<float> offset;
   // With BakeSettings::visibility, else empty: kVisibilityTexels planes, plane t holding per probe
-  // 3 floats (mean distance, mean squared distance, ray count) of the probe's first hits through
-  // octahedral texel t (probebake/volume/visibility_map.h).
+  // 3 floats (mean 1/t, mean 1/t^2, ray count) of the inverse distances t of the probe's first
+  // hits through octahedral texel t (probebake/volume/visibility_map.h).
   std::vector<std::vector<float>> visibility;
-  // With dilation, else empty: per probe 1 when its radiance was filled from its neighbours
-  // (it could not be baked where it is: validity 0), 0 when measured.
+  // With dilation (relocation on: probebake/bake/probe_dilation.h), else empty: per probe 1 when
+  // its radiance was filled from its neighbours (validity 0), 0 when measured.
   std::vector<float> filled;
   // Per probe, both relative standard errors of luminance estimated from the batch spread
   // (core/src/bake/probe_finish.h, docs/volume-format.md): of the irradiance reconstructed from

@@ -12,13 +12,25 @@
 //                 that order (the 16th byte is 128), each stored as
 //                 q = round(255 (0.5 + v / (2 l2Scale))), read back as v = (q / 255 - 0.5) 2
 //                 l2Scale
+// Then, when the volume has them (the header lists what is there):
+//   offset_filled  RGBA16F  (offset x, y, z, filled ? 1 : 0): with relocation, the offset from
+//                 the grid point to where the probe was baked, scene units (a shader's backface
+//                 and visibility weights use grid point + offset; trilinear weights the grid
+//                 point), and the dilation flag
+//   visibility     RGBA32F  an atlas of 8 nx x 8 ny x nz texels: probe (i, j, k)'s octahedral
+//                 texel (column c, row r) (probebake/volume/visibility_map.h) is texel
+//                 (8 i + c, 8 j + r, k), holding (mean 1/t, mean 1/t^2, rays, 0); 32-bit
+//                 because 1/t^2 of a near hit overflows half
 // Coefficients are radiance SH in probebake's frame and basis (sh_basis.h): a shader maps its
 // normal into probebake's frame first (three: (x, -z, y) of three's; Unity: (x, z, y) of Unity's).
-// Probes that are inactive or unusable (validity < 0.5) hold 0 everywhere, alpha 0 in L0_validity.
-// Header: {"format": "probebake-probe-textures", "version": 1, "counts": [nx, ny, nz],
+// Probes that are inactive or unusable (validity < 0.5 and not filled) hold 0 everywhere, alpha 0
+// in L0_validity.
+// Header: {"format": "probebake-probe-textures", "version": 2 (1 had no optional textures),
+// "counts": [nx, ny, nz],
 //   "origin": [x, y, z], "spacing": [x, y, z] (probebake frame; texel centres are probes),
 //   "l2Scale": s (max |L2| over usable probes, 1 if all are 0), "bin": "<file name>",
-//   "textures": [{"name", "format": "RGBA16F" | "RGBA8", "offset", "bytes"}, ...]}.
+//   "textures": [{"name", "format": "RGBA16F" | "RGBA8" | "RGBA32F", "offset", "bytes"}, ...]}
+//   ("offset" in bytes; the atlas also has "size": [8 nx, 8 ny, nz]).
 #pragma once
 
 #include <cstdint>

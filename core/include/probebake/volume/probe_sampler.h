@@ -10,17 +10,15 @@
 //     - trilinear: x's trilinear weights over the cell's grid points (offsets do not move them);
 //     - backface: ((dot(dir to probe, n) + 1) / 2)^2 + 0.2, dir from x to the probe where it was
 //       baked (grid point + offset): probes behind the surface count less, never nothing;
-//     - visibility, with the volume's moments (mean distance mu and mean square m2 in the
-//       direction from the probe to a point y at distance d, probebake/volume/visibility_map.h):
-//       V(y) = 1 when d <= mu, else Chebyshev's bound p = var / (var + (d - mu)^2),
-//       var = |m2 - mu^2|, cubed (DDGI sharpens it so). It is taken at two points and the smaller
-//       kept: xb = x + n * normalBias * s (s the grid's smallest spacing; DDGI's normal bias, so
-//       that a surface does not ask a probe about its own plane, where the texel's mean depth
-//       cannot tell its side), and x itself, so that a bias that crosses a thin wall (a surface
-//       facing the wall from closer than the bias) cannot make the probes beyond the wall
-//       visible. Then weights below 0.2 are crushed, w -> w^3 / 0.2^2, after a floor of 1e-6
-//       so that a point hidden from all 8 probes still gets their blend. The cell is chosen at
-//       x, not xb, for the same reason: a bias through a wall would pick the cell beyond it;
+//     - visibility, with the volume's moments (the mean and mean square of the inverse
+//       first-hit distance s = 1/t in the direction from the probe to a point y at distance d,
+//       probebake/volume/visibility_map.h): ProbeVisibility there. It is taken at two points
+//       and the smaller kept: xb = x + n * normalBias * s (s the grid's smallest spacing; DDGI's
+//       normal bias, so that a surface does not ask a probe about its own plane), and x itself,
+//       so that a bias that crosses a thin wall cannot make the probes beyond it visible. Then
+//       weights below 0.2 are crushed, w -> w^3 / 0.2^2, after a floor of 1e-30 so that a point
+//       hidden from all 8 probes still gets their blend. The cell is chosen at x, not xb, for the
+//       same reason;
 //   - the blend is normalised by the weights' sum.
 // Irradiance is E(n) = sum_i E_i Y_i(n), E_i the blended irradiance SH when the volume has them,
 // else the blended radiance SH times the clamped cosine's band factors; the blended radiance SH
@@ -32,12 +30,16 @@
 
 #include "probebake/bake/probe_volume.h"
 #include "probebake/math/vec3.h"
+#include "probebake/volume/visibility_map.h"
 
 namespace probebake {
 
 struct ProbeSamplerOptions {
-  double normalBias = 0.05; // fraction of the smallest spacing, >= 0
-  bool visibility = true;   // Chebyshev weights (when the volume has moments)
+  // Fraction of the smallest spacing, >= 0. Small (5 mm at a 0.5 m spacing): a bias longer than a
+  // point's distance to a thin wall puts the biased point inside it, where the probes on the
+  // point's own side no longer see it.
+  double normalBias = 0.01;
+  bool visibility = true;  // Chebyshev weights (when the volume has moments)
   bool backfaceWeight = true;
 };
 
@@ -55,9 +57,6 @@ class ProbeSampler {
   ProbeSample Sample(const Vec3d& position, const Vec3d& normal) const;
 
  private:
-  // The visibility of x from probe `probe` baked at probePos: DDGI's cubed Chebyshev bound.
-  double Chebyshev(int64_t probe, const Vec3d& probePos, const Vec3d& x) const;
-
   const ProbeVolume& volume_;
   ProbeSamplerOptions options_;
   double bias_;                     // scene units

@@ -25,7 +25,7 @@
 // - Compression: OpenVDB's default for files, blosc + active-mask compression (this OpenVDB build
 //   has blosc; zip would be its fallback). Lossless.
 // - File metadata (name: OpenVDB metadata type, all readable by pyopenvdb):
-//     probebake_format: int32 (2)          sh_order: int32 (L)
+//     probebake_format: int32 (4)          sh_order: int32 (L)
 //     sh_basis: string ("real-orthonormal-condon-shortley-zpolar")
 //     sh_window: string (ProbeVolume::window, e.g. "NONE")
 //     quantity: string ("radiance")        has_irradiance: bool
@@ -68,9 +68,10 @@
 
 namespace probebake {
 
-// The format written (docs/volume-format.md, "Versions and migration notes"), and the older one
-// ReadProbeVolume still reads.
-inline constexpr int kProbeVolumeFormat = 3;
+// The format written (docs/volume-format.md, "Versions and migration notes"), and the older ones
+// ReadProbeVolume still reads (format 3's visibility moments, of distances, are not read).
+inline constexpr int kProbeVolumeFormat = 4;
+inline constexpr int kProbeVolumeFormat3 = 3;
 inline constexpr int kProbeVolumeFormat2 = 2;
 inline constexpr int kProbeVolumeFormat1 = 1;
 // Largest SH order whose coefficient indices fit the two-digit grid names.
@@ -80,8 +81,9 @@ inline constexpr const char* kValidityGridName = "validity";
 inline constexpr const char* kStdErrorGridName = "std_error";
 inline constexpr const char* kStdErrorL0GridName = "std_error_l0";
 inline constexpr const char* kSampleCountGridName = "sample_count";
-// Format 3, optional: relocation offsets (has_offset), dilation flags (has_filled) and the
-// visibility moments (visibility_size > 0: visibility_00 ... one grid per octahedral texel).
+// Formats 3 and 4, optional: relocation offsets (has_offset), dilation flags (has_filled) and
+// the visibility moments (visibility_size > 0: visibility_00 ... one grid per octahedral texel;
+// format 4's of 1/t, format 3's of t).
 inline constexpr const char* kOffsetGridName = "offset";
 inline constexpr const char* kFilledGridName = "filled";
 // "visibility_07" for texel 7; texel in [0, 99].
@@ -145,7 +147,9 @@ struct ProbeVolumeFile {
 // (NOT_FOUND when the file does not exist).
 // Also reads format 1 (no std_error_l0 grid; its std_error held the L0 figure): that grid goes to
 // ProbeVolume::stdErrorL0, and stdError, which format 1 did not record, is +inf (unknown) at
-// every active probe. Format 2 is format 3 without its optional grids. Other formats are refused.
+// every active probe. Format 2 is format 3 without its optional grids; format 3 is format 4 with
+// moments of distances instead of inverse distances, which are dropped (a volume without
+// visibility). Other formats are refused.
 absl::StatusOr<ProbeVolumeFile> ReadProbeVolume(const std::string& path);
 
 }  // namespace probebake

@@ -18,7 +18,9 @@
 // probes and those of them with validity 0, as a bake counts its own (a probe two parts hold counts
 // once); samples, rays and threads add up (the work of every machine: a probe baked twice counts
 // twice); wallSeconds is the longest part's (parts run side by side). Parts with the AUTO window
-// must not overlap, as its summary counts windowed probes.
+// must not overlap, as its summary counts windowed probes. With dilation flags (relocation on) the
+// merged volume is dilated again (probebake/bake/probe_dilation.h): a part filled its probes from
+// its own neighbours only, so those values are neither compared between parts nor kept.
 #pragma once
 
 #include <string>
