@@ -37,7 +37,9 @@ double TStdError(const ProbeVolume& v, int64_t p, int r, int s, int ch) {
 }
 
 // Half-precision storage: half an ulp of 11 significant bits, or of the subnormal spacing 2^-24.
-double HalfRounding(double x) { return std::max(0x1p-11 * std::abs(x), 0x1p-25); }
+double HalfRounding(double x) {
+  return std::max(0x1p-11 * std::abs(x), 0x1p-25);
+}
 
 // int over the directions with z in [z0, z1] of f(w) dw, by Gauss-Legendre in z (n nodes) and the
 // trapezoid rule in azimuth (m nodes): exact for products of SH up to order (m - 1) / 2 in
@@ -98,9 +100,10 @@ void ExpectTransfer(const ProbeVolume& v, int64_t p, const std::vector<double>& 
       }
     }
   }
-  std::printf("[measured] %s: %d x %d x 3 entries, max |error| %.3g, max (|error| - allowance) / "
-              "std error %.2f\n",
-              what.c_str(), n, ns, worstError, worst);
+  std::printf(
+      "[measured] %s: %d x %d x 3 entries, max |error| %.3g, max (|error| - allowance) / "
+      "std error %.2f\n",
+      what.c_str(), n, ns, worstError, worst);
 }
 
 BakeJob TransferJob(int order, int skyOrder, int64_t samples, Vec3d p = {}) {
@@ -112,7 +115,8 @@ BakeJob TransferJob(int order, int skyOrder, int64_t samples, Vec3d p = {}) {
 TEST(SkyTransferSettings, OrderIsValidatedNamingTheField) {
   const auto error = [](const std::string& settings) {
     const std::string json = R"({"scene": {}, "grid": {"min": [0,0,0], "max": [0,0,0],
-      "counts": [1,1,1]}, "settings": )" + settings + "}";
+      "counts": [1,1,1]}, "settings": )" +
+                             settings + "}";
     absl::StatusOr<v1::JobSpec> spec = ParseJobJson(json);
     EXPECT_TRUE(spec.ok()) << spec.status();
     return std::string(ValidateJobSpec(*spec, JobLimits{}).message());
@@ -207,9 +211,10 @@ TEST(SkyTransfer, ColouredGroundReflectsTheSkyByItsAlbedo) {
         if (se > 0) worst = std::max(worst, std::abs(T(v, p, r, s, ch) - exact) / se);
       }
     }
-    std::printf("[measured] coloured ground, channel %d (albedo %.1f): max |error| / std error "
-                "%.2f\n",
-                ch, rho[ch], worst);
+    std::printf(
+        "[measured] coloured ground, channel %d (albedo %.1f): max |error| / std error "
+        "%.2f\n",
+        ch, rho[ch], worst);
   }
 }
 
@@ -239,12 +244,15 @@ struct OpenSphere {
     double area = 0;
     for (int i = 0; i < rings; ++i) {
       for (int j = 0; j < segments; ++j) {
-        const uint32_t a = uint32_t(i * segments + j), b = uint32_t(i * segments + (j + 1) % segments);
+        const uint32_t a = uint32_t(i * segments + j),
+                       b = uint32_t(i * segments + (j + 1) % segments);
         const uint32_t c = b + uint32_t(segments), d = a + uint32_t(segments);
         // Front faces toward the centre.
         m.indices.insert(m.indices.end(), {a, b, c, a, c, d});
-        area += 0.5 * Length(Cross(m.positions[b] - m.positions[a], m.positions[c] - m.positions[a]));
-        area += 0.5 * Length(Cross(m.positions[c] - m.positions[a], m.positions[d] - m.positions[a]));
+        area +=
+            0.5 * Length(Cross(m.positions[b] - m.positions[a], m.positions[c] - m.positions[a]));
+        area +=
+            0.5 * Length(Cross(m.positions[c] - m.positions[a], m.positions[d] - m.positions[a]));
       }
     }
     *areaDeficit = 1 - area / (2 * kPi * (1 + cosAlpha));
@@ -283,9 +291,10 @@ TEST(SkyTransfer, OpenFurnaceSumsTheBouncesGeometrically) {
         EXPECT_NEAR(T(v, 0, r, 0, ch), exact, kSigmas * se + HalfRounding(exact) + geometry)
             << "maxDepth " << depth << " T[" << r << "][0] channel " << ch;
         if (r == 0)
-          std::printf("[measured] open furnace rho %.1f maxDepth %d: T00 %.6f exact %.6f "
-                      "(std error %.2g, mesh allowance %.2g)\n",
-                      rho[ch], depth, T(v, 0, 0, 0, ch), exact, se, geometry);
+          std::printf(
+              "[measured] open furnace rho %.1f maxDepth %d: T00 %.6f exact %.6f "
+              "(std error %.2g, mesh allowance %.2g)\n",
+              rho[ch], depth, T(v, 0, 0, 0, ch), exact, se, geometry);
       }
     }
   }
@@ -328,7 +337,8 @@ TEST(SkyTransfer, SameBitsWhateverThreadsAndSharding) {
   for (size_t e = 0; e < one.skyTransfer.size(); ++e) {
     for (int j = 0; j < 2; ++j) {
       for (int i = 0; i < 2; ++i) {
-        const int64_t whole = one.grid.LinearIndex(i + 1, j, 0), mine = sub.grid.LinearIndex(i, j, 0);
+        const int64_t whole = one.grid.LinearIndex(i + 1, j, 0),
+                      mine = sub.grid.LinearIndex(i, j, 0);
         for (int ch = 0; ch < 3; ++ch)
           ASSERT_EQ(one.skyTransfer[e][3 * whole + ch], sub.skyTransfer[e][3 * mine + ch])
               << "entry " << e;

@@ -308,8 +308,8 @@ TEST_F(VdbLayout, ReaderRejectsBrokenFilesNamingTheGridOrKey) {
   {  // a format this reader does not know
     vdb::MetaMap::Ptr m = meta->copyMeta();
     m->removeMeta("probebake_format");
-    m->insertMeta("probebake_format", vdb::Int32Metadata(4));
-    expectError(WriteAndRead(good, *m), "probebake_format", "this reader knows 1 to 3");
+    m->insertMeta("probebake_format", vdb::Int32Metadata(5));
+    expectError(WriteAndRead(good, *m), "probebake_format", "this reader knows 1 to 4");
   }
   {  // format 1 has no std_error_l0 grid: one is not part of it
     vdb::MetaMap::Ptr m = meta->copyMeta();

@@ -239,7 +239,9 @@ double ProbeFinisher::Finish(const ProbeEstimate& estimate, int batches, int64_t
   return autoT;
 }
 
-float RoundToHalf(float x) { return float(Imath::half(x)); }
+float RoundToHalf(float x) {
+  return float(Imath::half(x));
+}
 
 ProbeVolume EmptyLike(const ProbeVolume& v) {
   ProbeVolume out;
@@ -256,8 +258,7 @@ ProbeVolume EmptyLike(const ProbeVolume& v) {
   out.visibility.assign(v.visibility.size(), std::vector<float>(planeSize, 0.0f));
   out.skyTransferOrder = v.skyTransferOrder;
   out.skyTransfer.assign(v.skyTransfer.size(), std::vector<float>(planeSize, 0.0f));
-  out.skyTransferStdError.assign(v.skyTransferStdError.size(),
-                                 std::vector<float>(planeSize, 0.0f));
+  out.skyTransferStdError.assign(v.skyTransferStdError.size(), std::vector<float>(planeSize, 0.0f));
   out.autoWindowT.assign(v.autoWindowT.size(), 0.0f);
   out.stdError.assign(v.stdError.size(), 0.0f);
   out.stdErrorL0.assign(v.stdErrorL0.size(), 0.0f);

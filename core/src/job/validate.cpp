@@ -741,8 +741,8 @@ class Validator {
                               ")");
       } else if (Above(order, limits_.maxShOrder)) {
         errors_.Add(path, Num(order) + " is above the limit of " + Num(limits_.maxShOrder));
-      } else if (order > 0 && (s.has_target_rel_error() ? s.target_rel_error()
-                                                         : preset.targetRelError) > 0) {
+      } else if (order > 0 &&
+                 (s.has_target_rel_error() ? s.target_rel_error() : preset.targetRelError) > 0) {
         // std_error measures the radiance grids (the local lights), not T: adaptive sampling
         // would stop on the local lights' noise alone.
         errors_.Add(path, std::string("sky transfer does not support adaptive sampling "

@@ -69,7 +69,7 @@ struct ProbeVolume {
   // Optional (BakeOptions::coefficientErrors with sky transfer): the standard error of every T
   // entry before rounding, same layout. Not written to files; for tests.
   std::vector<std::vector<float>> skyTransferStdError;
-  std::string window = "NONE";     // as recorded in the file's sh_window metadata
+  std::string window = "NONE";  // as recorded in the file's sh_window metadata
   BakeStats stats;
 
   int CoeffCount() const { return (shOrder + 1) * (shOrder + 1); }

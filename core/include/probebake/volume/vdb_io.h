@@ -71,6 +71,9 @@ namespace probebake {
 // The format written (docs/volume-format.md, "Versions and migration notes"), and the older one
 // ReadProbeVolume still reads.
 inline constexpr int kProbeVolumeFormat = 3;
+// The format of volumes with a sky transfer (format 3 plus its grids and keys), written only for
+// them: files without one stay format 3, and readers of format 3 refuse these by their number.
+inline constexpr int kProbeVolumeFormat4 = 4;
 inline constexpr int kProbeVolumeFormat2 = 2;
 inline constexpr int kProbeVolumeFormat1 = 1;
 // Largest SH order whose coefficient indices fit the two-digit grid names.
@@ -86,6 +89,10 @@ inline constexpr const char* kOffsetGridName = "offset";
 inline constexpr const char* kFilledGridName = "filled";
 // "visibility_07" for texel 7; texel in [0, 99].
 std::string VisibilityGridName(int texel);
+
+// Format 4: "sky_transfer_07_03" for T[7][3] (radiance coefficient 7 from sky coefficient 3);
+// both in [0, 99].
+std::string SkyTransferGridName(int row, int column);
 
 // "radiance_sh_07" for coefficient 7; coefficient in [0, 99].
 std::string RadianceGridName(int coefficient);
@@ -145,7 +152,9 @@ struct ProbeVolumeFile {
 // (NOT_FOUND when the file does not exist).
 // Also reads format 1 (no std_error_l0 grid; its std_error held the L0 figure): that grid goes to
 // ProbeVolume::stdErrorL0, and stdError, which format 1 did not record, is +inf (unknown) at
-// every active probe. Format 2 is format 3 without its optional grids. Other formats are refused.
+// every active probe. Format 2 is format 3 without its optional grids; format 4 is format 3 with a
+// sky transfer (sky_transfer_order > 0, its grids read into ProbeVolume::skyTransfer as stored,
+// i.e. half-precision values). Other formats are refused.
 absl::StatusOr<ProbeVolumeFile> ReadProbeVolume(const std::string& path);
 
 }  // namespace probebake
