@@ -61,10 +61,24 @@ absl::StatusOr<ProbeVolume> Relight(const ProbeVolume& volume, std::span<const V
   // The sky's columns that T has; the rest of T's columns see 0.
   const int used = std::min(skyCoeffs, int(sky.size()));
 
-  ProbeVolume out = volume;
-  out.skyTransferOrder = 0;
-  std::vector<std::vector<float>>().swap(out.skyTransfer);
-  std::vector<std::vector<float>>().swap(out.skyTransferStdError);
+  // Every field but the transfer, which would be copied only to be freed.
+  ProbeVolume out;
+  out.grid = volume.grid;
+  out.shOrder = volume.shOrder;
+  out.active = volume.active;
+  out.radiance = volume.radiance;
+  out.irradiance = volume.irradiance;
+  out.radianceStdError = volume.radianceStdError;
+  out.autoWindowT = volume.autoWindowT;
+  out.validity = volume.validity;
+  out.offset = volume.offset;
+  out.visibility = volume.visibility;
+  out.filled = volume.filled;
+  out.stdError = volume.stdError;
+  out.stdErrorL0 = volume.stdErrorL0;
+  out.sampleCount = volume.sampleCount;
+  out.window = volume.window;
+  out.stats = volume.stats;
   const bool irradiance = !volume.irradiance.empty();
   const bool autoWindow = options.window == ShWindow::kAuto;
   ShBandWindow window;
@@ -72,37 +86,54 @@ absl::StatusOr<ProbeVolume> Relight(const ProbeVolume& volume, std::span<const V
   if (options.window == ShWindow::kLanczos) window = ShBandWindow::Lanczos();
   if (autoWindow && irradiance) out.autoWindowT.assign(size_t(probes), 0.0f);
   std::atomic<bool> overflow{false};
+  // Blocks of probes, each plane read along the block: the planes are separate arrays, and a
+  // probe at a time would touch (L+1)^2 (Ls+1)^2 of them at once, far more streams than the
+  // hardware prefetches (measured 9 s per million probes that way, at L = Ls = 2).
+  constexpr int64_t kBlock = 256;
   tbb::parallel_for(
-      tbb::blocked_range<int64_t>(0, probes, 256), [&](const tbb::blocked_range<int64_t>& range) {
+      tbb::blocked_range<int64_t>(0, (probes + kBlock - 1) / kBlock, 1),
+      [&](const tbb::blocked_range<int64_t>& blocks) {
+        std::vector<Vec3d> sum(size_t(kBlock) * size_t(coeffs));
         std::vector<Vec3d> radiance(static_cast<size_t>(coeffs)), irr(static_cast<size_t>(coeffs));
-        for (int64_t p = range.begin(); p != range.end(); ++p) {
-          if (!volume.active[size_t(p)]) continue;
+        for (int64_t block = blocks.begin(); block != blocks.end(); ++block) {
+          const int64_t first = block * kBlock, end = std::min(probes, first + kBlock);
+          // sum[(p - first) coeffs + r] = local_r + sum_s T_rs sky_s, s in order.
           for (int r = 0; r < coeffs; ++r) {
-            const float* local = &volume.radiance[size_t(r)][3 * size_t(p)];
-            Vec3d sum(local[0], local[1], local[2]);
+            const float* local = volume.radiance[size_t(r)].data();
+            for (int64_t p = first; p < end; ++p)
+              sum[size_t((p - first) * coeffs + r)] =
+                  Vec3d(local[3 * p], local[3 * p + 1], local[3 * p + 2]);
             for (int s = 0; s < used; ++s) {
-              const float* t = &volume.skyTransfer[size_t(r * skyCoeffs + s)][3 * size_t(p)];
-              sum += Vec3d(t[0], t[1], t[2]) * sky[size_t(s)];
-            }
-            radiance[size_t(r)] = sum;
-            float* o = &out.radiance[size_t(r)][3 * size_t(p)];
-            for (int ch = 0; ch < 3; ++ch) {
-              o[ch] = float(sum[ch]);
-              if (!std::isfinite(o[ch])) overflow.store(true, std::memory_order_relaxed);
+              const float* t = volume.skyTransfer[size_t(r * skyCoeffs + s)].data();
+              const Vec3d k = sky[size_t(s)];
+              for (int64_t p = first; p < end; ++p)
+                sum[size_t((p - first) * coeffs + r)] +=
+                    Vec3d(t[3 * p], t[3 * p + 1], t[3 * p + 2]) * k;
             }
           }
-          if (!irradiance) continue;
-          RadianceToIrradianceRgb(volume.shOrder, radiance, irr);
-          if (autoWindow) {
-            const AutoWindowResult chosen = FindAutoShWindow(volume.shOrder, radiance);
-            ApplyShWindowRgb(chosen.window, volume.shOrder, irr);
-            out.autoWindowT[size_t(p)] = float(chosen.window.parameter);
-          } else {
-            ApplyShWindowRgb(window, volume.shOrder, irr);
+          for (int64_t p = first; p < end; ++p) {
+            if (!volume.active[size_t(p)]) continue;
+            for (int r = 0; r < coeffs; ++r) {
+              radiance[size_t(r)] = sum[size_t((p - first) * coeffs + r)];
+              float* o = &out.radiance[size_t(r)][3 * size_t(p)];
+              for (int ch = 0; ch < 3; ++ch) {
+                o[ch] = float(radiance[size_t(r)][ch]);
+                if (!std::isfinite(o[ch])) overflow.store(true, std::memory_order_relaxed);
+              }
+            }
+            if (!irradiance) continue;
+            RadianceToIrradianceRgb(volume.shOrder, radiance, irr);
+            if (autoWindow) {
+              const AutoWindowResult chosen = FindAutoShWindow(volume.shOrder, radiance);
+              ApplyShWindowRgb(chosen.window, volume.shOrder, irr);
+              out.autoWindowT[size_t(p)] = float(chosen.window.parameter);
+            } else {
+              ApplyShWindowRgb(window, volume.shOrder, irr);
+            }
+            for (int r = 0; r < coeffs; ++r)
+              for (int ch = 0; ch < 3; ++ch)
+                out.irradiance[size_t(r)][3 * size_t(p) + size_t(ch)] = float(irr[size_t(r)][ch]);
           }
-          for (int r = 0; r < coeffs; ++r)
-            for (int ch = 0; ch < 3; ++ch)
-              out.irradiance[size_t(r)][3 * size_t(p) + size_t(ch)] = float(irr[size_t(r)][ch]);
         }
       });
   if (overflow.load())
