@@ -49,8 +49,8 @@ BakeJob DemoJob(int64_t samples, int skyOrder, std::array<int, 3> counts, bool n
   s->set_samples_per_probe(samples);
   if (skyOrder > 0) s->mutable_sky_transfer()->set_order(skyOrder);
   const JobLimits limits;
-  absl::StatusOr<BakeJob> job = BuildBakeJob(
-      *spec, LocalAssetSource(kDataDir + "/demo", "", limits.maxAssetBytes), limits);
+  absl::StatusOr<BakeJob> job =
+      BuildBakeJob(*spec, LocalAssetSource(kDataDir + "/demo", "", limits.maxAssetBytes), limits);
   if (!job.ok()) {
     std::fprintf(stderr, "%s\n", std::string(job.status().message()).c_str());
     std::abort();
@@ -109,8 +109,8 @@ double IrradianceError(const ProbeVolume& got, const ProbeVolume& want) {
       const double a = IrradianceBandFactor(l);
       for (int m = -l; m <= l; ++m, ++i) {
         const auto lum = [&](const ProbeVolume& v) {
-          return Luminance(Vec3d(v.radiance[i][3 * p], v.radiance[i][3 * p + 1],
-                                 v.radiance[i][3 * p + 2]));
+          return Luminance(
+              Vec3d(v.radiance[i][3 * p], v.radiance[i][3 * p + 1], v.radiance[i][3 * p + 2]));
         };
         err += a * a * (lum(got) - lum(want)) * (lum(got) - lum(want));
         norm += a * a * lum(want) * lum(want);
@@ -142,10 +142,11 @@ void BakeTimesAndBytes(int threads) {
       if (!WriteProbeVolume(path, v, VolumeMetadataFor(job)).ok()) std::abort();
       const double bytes = double(std::filesystem::file_size(path)) / double(Active(v));
       if (order == 0) base = seconds;
-      std::printf("bake demo room (%lld probes, %d spp, L=2, irradiance, %d threads) Ls=%d: "
-                  "%.2f s (x%.2f), %.1f Mrays/s, file %.0f bytes/probe\n",
-                  (long long)Active(v), samples, threads, order, seconds, seconds / base,
-                  double(v.stats.rays) / seconds * 1e-6, bytes);
+      std::printf(
+          "bake demo room (%lld probes, %d spp, L=2, irradiance, %d threads) Ls=%d: "
+          "%.2f s (x%.2f), %.1f Mrays/s, file %.0f bytes/probe\n",
+          (long long)Active(v), samples, threads, order, seconds, seconds / base,
+          double(v.stats.rays) / seconds * 1e-6, bytes);
     }
   }
   // A denser grid (spacing 0.25) for the bytes, where the per-grid overhead is amortised.
@@ -181,9 +182,10 @@ void RelightTimes() {
     const absl::StatusOr<ProbeVolume> relit = Relight(v, sky);
     const double seconds = Seconds(start);
     if (!relit.ok()) std::abort();
-    std::printf("relight L=2 with irradiance, Ls=%d: %.3f s for %lld probes = %.2f s per million "
-                "probes\n",
-                skyOrder, seconds, (long long)n, seconds / double(n) * 1e6);
+    std::printf(
+        "relight L=2 with irradiance, Ls=%d: %.3f s for %lld probes = %.2f s per million "
+        "probes\n",
+        skyOrder, seconds, (long long)n, seconds / double(n) * 1e6);
   }
 }
 
@@ -204,7 +206,8 @@ BakeJob OutdoorJob(int64_t samples, int skyOrder) {
     box.name = "building";
     box.material = 1;
     for (int k = 0; k < 8; ++k)
-      box.positions.push_back({(k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z});
+      box.positions.push_back(
+          {(k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z});
     box.indices = {0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4,
                    2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5};
     job.scene.meshes.push_back(box);
@@ -225,13 +228,13 @@ void ErrorAgainstOrder(int threads) {
   // The sun shines through the window onto the floor.
   const Vec3d sun = Normalize(Vec3d{0.2, 0.8, 0.55});
   // A sun of radiance 2e4 on a 0.53-degree disk: about 1.3 of irradiance against the sky's ~2.
-  const Environment skies[4] = {Sky(sun, 0), Sky(sun, 2e4), Sky(sun, 0, true),
-                                Sky(sun, 2e4, true)};
+  const Environment skies[4] = {Sky(sun, 0), Sky(sun, 2e4), Sky(sun, 0, true), Sky(sun, 2e4, true)};
   const char* names[4] = {"soft sky (no sun)", "sky + sharp 0.53-degree sun",
                           "soft sky, horizon colour below",
                           "sky + sharp sun, horizon colour below"};
   for (const bool outdoor : {true, false}) {
-    const BakeJob transferJob = outdoor ? OutdoorJob(samples, 8) : DemoJob(samples, 8, {4, 3, 2}, true);
+    const BakeJob transferJob =
+        outdoor ? OutdoorJob(samples, 8) : DemoJob(samples, 8, {4, 3, 2}, true);
     double seconds = 0;
     const ProbeVolume transfer = BakeOrDie(transferJob, threads, &seconds);
     for (int k = 0; k < 4; ++k) {
@@ -243,10 +246,11 @@ void ErrorAgainstOrder(int threads) {
       direct.settings.seed = 8;
       const double noise = IrradianceError(BakeOrDie(direct, threads), reference);
       const std::vector<Vec3d> sky8 = ProjectEnvironmentSh(skies[k], 8);
-      std::printf("error vs Ls, %s, %s (%lld probes, %lld spp): noise floor (two direct bakes) "
-                  "%.4f;",
-                  outdoor ? "outdoors" : "demo room, sky only", names[k],
-                  (long long)Active(reference), (long long)samples, noise);
+      std::printf(
+          "error vs Ls, %s, %s (%lld probes, %lld spp): noise floor (two direct bakes) "
+          "%.4f;",
+          outdoor ? "outdoors" : "demo room, sky only", names[k], (long long)Active(reference),
+          (long long)samples, noise);
       for (const int order : {1, 2, 3, 4, 6, 8}) {
         const std::vector<Vec3d> sky(sky8.begin(), sky8.begin() + ShCoeffCount(order));
         const absl::StatusOr<ProbeVolume> relit = Relight(transfer, sky);
