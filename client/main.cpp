@@ -343,6 +343,16 @@ int RunPlan(const std::string& jobPath, int shards, int threads, bool json) {
 
 // ---- inspect ----
 
+// A volume with a sky transfer holds the local lights alone in its radiance: tools that read
+// radiance say so (they are not wrong, only unlit by a sky until relit).
+void NoteSkyTransfer(const std::string& path, const ProbeVolume& volume) {
+  if (volume.skyTransferOrder > 0)
+    std::fprintf(stderr,
+                 "probebake: note: %s has a sky transfer: its radiance holds the local lights "
+                 "only; probebake relight it for a sky first\n",
+                 path.c_str());
+}
+
 int RunInspect(const std::string& path, bool json, const std::string& slice,
                const std::string& png) {
   if (!slice.empty()) {
@@ -352,6 +362,7 @@ int RunInspect(const std::string& path, bool json, const std::string& slice,
       return Fail(kExitUsage, std::string(parsed.message()));
     absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
     if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+    NoteSkyTransfer(path, file->volume);
     if (absl::Status written = WriteIrradianceSlice(file->volume, options, png); !written.ok())
       return Fail(kExitUsage, std::string(written.message()));
     if (!json) std::fprintf(stderr, "wrote %s\n", png.c_str());
@@ -375,6 +386,7 @@ int RunExport(const std::string& path, const std::string& format, const std::str
   if (const int code = CheckOutput(out); code != kExitOk) return code;
   absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
   if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+  NoteSkyTransfer(path, file->volume);
   if (absl::Status written = WriteEngineExport(file->volume, *parsed, out); !written.ok())
     return Fail(kExitUsage, absl::StrCat(path, ": ", written.message()));
   std::fprintf(stderr, "wrote %s\n", out.c_str());
@@ -389,6 +401,7 @@ int RunView(const std::string& path, const std::string& jobPath, double exposure
   if (const int code = CheckOutput(out); code != kExitOk) return code;
   absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
   if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+  NoteSkyTransfer(path, file->volume);
   std::optional<BakeJob> job;
   if (!jobPath.empty()) {
     absl::StatusOr<BakeJob> loaded = LoadBakeJob(jobPath, JobLimits());
@@ -419,6 +432,7 @@ int RunSample(const std::string& path, const std::string& pointsPath) {
     return Fail(kExitUsage, pointsPath + ": " + std::string(points.status().message()));
   absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
   if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+  NoteSkyTransfer(path, file->volume);
   const ProbeSampler sampler(file->volume);
   for (const SamplePoint& p : *points)
     std::printf("%s\n", SampleJson(p, sampler.Sample(p.position, p.normal)).c_str());
