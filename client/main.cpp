@@ -4,6 +4,8 @@
 //                  [--shard I/N [--blob-dir D] [--progress-file F] [--expect-job-digest D]]
 //   probebake plan JOB.json --shards N [--json]
 //   probebake merge PART.vdb... -o OUT.vdb
+//   probebake relight VOLUME.vdb (--environment MAP|SH.json | --uniform R,G,B) [--up Y|Z]
+//                     [--scale S] [--rotate DEGREES] -o OUT.vdb
 //   probebake inspect OUT.vdb [--json] [--slice AXIS=VALUE -o PNG]
 //   probebake sample OUT.vdb --points POINTS.json
 //   probebake export OUT.vdb --format threejs|unity|textures -o FILE.json
@@ -31,13 +33,19 @@
 
 #include <CLI/CLI.hpp>
 
+#include <google/protobuf/struct.pb.h>
+#include <google/protobuf/util/json_util.h>
 #include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "client/client.h"
 #include "client/progress.h"
+
 #include "probebake/bake/bake.h"
+#include "probebake/bake/relight.h"
 #include "probebake/base/log.h"
 #include "probebake/engines/engine_export.h"
 #include "probebake/engines/viewer_page.h"
@@ -46,6 +54,7 @@
 #include "probebake/job/job.h"
 #include "probebake/job/job_json.h"
 #include "probebake/job/validate.h"
+#include "probebake/sh/sh_basis.h"
 #include "probebake/volume/irradiance_slice.h"
 #include "probebake/volume/probe_sampler.h"
 #include "probebake/volume/sample_points.h"
@@ -334,6 +343,16 @@ int RunPlan(const std::string& jobPath, int shards, int threads, bool json) {
 
 // ---- inspect ----
 
+// A volume with a sky transfer holds the local lights alone in its radiance: tools that read
+// radiance say so (they are not wrong, only unlit by a sky until relit).
+void NoteSkyTransfer(const std::string& path, const ProbeVolume& volume) {
+  if (volume.skyTransferOrder > 0)
+    std::fprintf(stderr,
+                 "probebake: note: %s has a sky transfer: its radiance holds the local lights "
+                 "only; probebake relight it for a sky first\n",
+                 path.c_str());
+}
+
 int RunInspect(const std::string& path, bool json, const std::string& slice,
                const std::string& png) {
   if (!slice.empty()) {
@@ -343,6 +362,7 @@ int RunInspect(const std::string& path, bool json, const std::string& slice,
       return Fail(kExitUsage, std::string(parsed.message()));
     absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
     if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+    NoteSkyTransfer(path, file->volume);
     if (absl::Status written = WriteIrradianceSlice(file->volume, options, png); !written.ok())
       return Fail(kExitUsage, std::string(written.message()));
     if (!json) std::fprintf(stderr, "wrote %s\n", png.c_str());
@@ -366,6 +386,7 @@ int RunExport(const std::string& path, const std::string& format, const std::str
   if (const int code = CheckOutput(out); code != kExitOk) return code;
   absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
   if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+  NoteSkyTransfer(path, file->volume);
   if (absl::Status written = WriteEngineExport(file->volume, *parsed, out); !written.ok())
     return Fail(kExitUsage, absl::StrCat(path, ": ", written.message()));
   std::fprintf(stderr, "wrote %s\n", out.c_str());
@@ -380,6 +401,7 @@ int RunView(const std::string& path, const std::string& jobPath, double exposure
   if (const int code = CheckOutput(out); code != kExitOk) return code;
   absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
   if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+  NoteSkyTransfer(path, file->volume);
   std::optional<BakeJob> job;
   if (!jobPath.empty()) {
     absl::StatusOr<BakeJob> loaded = LoadBakeJob(jobPath, JobLimits());
@@ -410,6 +432,7 @@ int RunSample(const std::string& path, const std::string& pointsPath) {
     return Fail(kExitUsage, pointsPath + ": " + std::string(points.status().message()));
   absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(path);
   if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+  NoteSkyTransfer(path, file->volume);
   const ProbeSampler sampler(file->volume);
   for (const SamplePoint& p : *points)
     std::printf("%s\n", SampleJson(p, sampler.Sample(p.position, p.normal)).c_str());
@@ -437,6 +460,133 @@ int RunMerge(const std::vector<std::string>& inputs, const std::string& out) {
     return Fail(kExitUsage, std::string(written.message()));
   std::fprintf(stderr, "wrote %s: %lld probes from %zu volumes, grid %d x %d x %d\n", out.c_str(),
                (long long)probes, inputs.size(), g.counts[0], g.counts[1], g.counts[2]);
+  return kExitOk;
+}
+
+// ---- relight ----
+
+struct RelightFlags {
+  std::string environment;  // a map file, or .json SH coefficients
+  std::string uniform;      // "r,g,b"
+  std::string up = "Y";
+  double scale = 1;
+  double rotate = 0;
+};
+
+// Sky SH coefficients from a JSON file {"coefficients": [[r, g, b], ...]}: (Ls+1)^2 RGB triples
+// in the volume's SH convention (docs/spherical-harmonics.md), radiance units.
+absl::StatusOr<std::vector<Vec3d>> ReadSkyShJson(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return absl::InvalidArgumentError(path + ": cannot be read");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  google::protobuf::Struct root;
+  if (!google::protobuf::util::JsonStringToMessage(text, &root).ok())
+    return absl::InvalidArgumentError(path + ": not a JSON object");
+  const auto field = root.fields().find("coefficients");
+  if (field == root.fields().end() || !field->second.has_list_value())
+    return absl::InvalidArgumentError(path + ": coefficients: expected a list of [r, g, b]");
+  std::vector<Vec3d> sky;
+  for (const google::protobuf::Value& v : field->second.list_value().values()) {
+    const std::string at = path + ": coefficients[" + std::to_string(sky.size()) + "]";
+    if (!v.has_list_value() || v.list_value().values_size() != 3)
+      return absl::InvalidArgumentError(at + ": expected [r, g, b]");
+    Vec3d c;
+    for (int ch = 0; ch < 3; ++ch) {
+      const google::protobuf::Value& x = v.list_value().values(ch);
+      if (!x.has_number_value() || !std::isfinite(x.number_value()))
+        return absl::InvalidArgumentError(at + ": expected three finite numbers");
+      c[ch] = x.number_value();
+    }
+    sky.push_back(c);
+  }
+  size_t order = 0;
+  while ((order + 1) * (order + 1) < sky.size()) ++order;
+  if (sky.empty() || (order + 1) * (order + 1) != sky.size() || int(order) > kMaxShOrder)
+    return absl::InvalidArgumentError(path + ": coefficients: " + std::to_string(sky.size()) +
+                                      " entries, expected (L+1)^2 for an order L in [0, " +
+                                      std::to_string(kMaxShOrder) + "]");
+  return sky;
+}
+
+// Relights a volume baked with a sky transfer (probebake/bake/relight.h) for the sky given.
+int RunRelight(const std::string& input, const RelightFlags& f, const std::string& out) {
+  if (f.environment.empty() == f.uniform.empty())
+    return Fail(kExitUsage, "relight: give one of --environment and --uniform");
+  if (const int code = CheckOutput(out); code != kExitOk) return code;
+  absl::StatusOr<ProbeVolumeFile> file = ReadProbeVolume(input);
+  if (!file.ok()) return Fail(kExitUsage, std::string(file.status().message()));
+  ProbeVolume& volume = file->volume;
+  if (volume.skyTransferOrder <= 0)
+    return Fail(kExitUsage, input + ": no sky transfer (bake with settings.skyTransfer.order)");
+  const int order = volume.skyTransferOrder;
+
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<Vec3d> sky;
+  int skyOrder = order;
+  if (absl::EndsWithIgnoreCase(f.environment, ".json")) {
+    absl::StatusOr<std::vector<Vec3d>> read = ReadSkyShJson(f.environment);
+    if (!read.ok()) return Fail(kExitUsage, std::string(read.status().message()));
+    sky = std::move(*read);
+    for (Vec3d& c : sky) c = c * f.scale;
+    skyOrder = int(std::lround(std::sqrt(double(sky.size())))) - 1;
+  } else {
+    v1::Environment spec;
+    if (!f.uniform.empty()) {
+      const std::vector<std::string> parts = absl::StrSplit(f.uniform, ',');
+      double rgb[3];
+      if (parts.size() != 3 || !absl::SimpleAtod(parts[0], &rgb[0]) ||
+          !absl::SimpleAtod(parts[1], &rgb[1]) || !absl::SimpleAtod(parts[2], &rgb[2]))
+        return Fail(kExitUsage, "--uniform: expected R,G,B (three numbers)");
+      for (double x : rgb) spec.mutable_uniform()->add_radiance(x * f.scale);
+    } else {
+      const std::filesystem::path path = std::filesystem::absolute(f.environment);
+      v1::EnvironmentMap* map = spec.mutable_map();
+      map->set_file(path.filename().string());
+      map->set_scale(f.scale);
+      if (f.up != "Y" && f.up != "Z") return Fail(kExitUsage, "--up: expected Y or Z");
+      map->set_up(f.up == "Z" ? v1::EnvironmentMap::Z : v1::EnvironmentMap::Y);
+    }
+    const JobLimits limits;
+    absl::StatusOr<Environment> env = LoadEnvironment(
+        spec,
+        LocalAssetSource(std::filesystem::absolute(f.environment.empty() ? "." : f.environment)
+                             .parent_path()
+                             .string(),
+                         "", limits.maxAssetBytes),
+        limits);
+    if (!env.ok()) return Fail(env.status(), f.environment.empty() ? "--uniform" : f.environment);
+    sky = ProjectEnvironmentSh(*env, order);
+  }
+  if (f.rotate != 0) {
+    absl::StatusOr<std::vector<Vec3d>> rotated = RotateSkyAboutUp(sky, skyOrder, f.rotate);
+    if (!rotated.ok()) return Fail(kExitUsage, std::string(rotated.status().message()));
+    sky = std::move(*rotated);
+  }
+  const double skySeconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  // The irradiance window as baked (the volume's recorded settings).
+  RelightOptions options;
+  v1::BakeSettings baked;
+  google::protobuf::util::JsonParseOptions lenient;
+  lenient.ignore_unknown_fields = true;
+  if (google::protobuf::util::JsonStringToMessage(file->meta.settingsJson, &baked, lenient).ok()) {
+    const BakeSettings resolved = ResolveSettings(baked);
+    options.window = resolved.window;
+    options.windowWidth = resolved.windowWidth;
+  }
+  const auto relightStart = std::chrono::steady_clock::now();
+  absl::StatusOr<ProbeVolume> relit = Relight(volume, sky, options);
+  if (!relit.ok()) return Fail(kExitUsage, std::string(relit.status().message()));
+  const double relightSeconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - relightStart).count();
+  const int64_t probes = std::count(volume.active.begin(), volume.active.end(), uint8_t{1});
+  if (absl::Status written = WriteProbeVolume(out, *std::move(relit), file->meta); !written.ok())
+    return Fail(kExitUsage, std::string(written.message()));
+  std::fprintf(stderr,
+               "wrote %s: %lld probes relit (order %d transfer, sky order %d): sky %.3f s, "
+               "relight %.3f s\n",
+               out.c_str(), (long long)probes, order, skyOrder, skySeconds, relightSeconds);
   return kExitOk;
 }
 
@@ -704,6 +854,22 @@ int Main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   view->add_option("-o,--output", out, "Page to write (.html)")->required();
 
+  RelightFlags relightFlags;
+  CLI::App* relight = app.add_subcommand(
+      "relight", "Relight a volume baked with settings.skyTransfer for another sky");
+  relight->add_option("volume", path, "Probe volume with a sky transfer (.vdb)")->required();
+  relight->add_option("--environment", relightFlags.environment,
+                      "Sky: an environment map (OpenEXR or .hdr, lat-long or cube, as a job's "
+                      "map), or SH coefficients (.json: {\"coefficients\": [[r,g,b], ...]})");
+  relight->add_option("--uniform", relightFlags.uniform, "Sky: a uniform radiance R,G,B");
+  relight->add_option("--up", relightFlags.up, "The map's up axis, Y (default) or Z");
+  relight->add_option("--scale", relightFlags.scale, "Multiplies the sky (default 1)")
+      ->check(CLI::NonNegativeNumber);
+  relight->add_option("--rotate", relightFlags.rotate,
+                      "Turn the sky about the up axis (world +Z), degrees counter-clockwise seen "
+                      "from above");
+  relight->add_option("-o,--output", out, "Relit probe volume to write (.vdb)")->required();
+
   std::vector<std::string> parts;
   CLI::App* merge =
       app.add_subcommand("merge", "Merge the volumes of sub-grids of one grid (a sharded bake)");
@@ -758,6 +924,7 @@ int Main(int argc, char** argv) {
   if (*exportCmd) return RunExport(path, format, out);
   if (*view) return RunView(path, sceneJob, exposure, out);
   if (*merge) return RunMerge(parts, out);
+  if (*relight) return RunRelight(path, relightFlags, out);
   if (*submit) return RunSubmit(flags, jobPath, wait, out, skipCache, requestId);
   if (*watch) return RunWatch(flags, name);
   if (*status) return RunStatus(flags, name);

@@ -155,13 +155,17 @@ absl::Status WriteCheckpoint(const std::filesystem::path& path, const std::strin
   w.Pod(work.samples);
   w.Pod(work.rays);
   w.Vector(volume.stdErrorL0);
-  // 05: the per-probe planes of relocation, visibility, dilation and the automatic window, which
-  // a resumed bake copies from the checkpoint with the radiance of finished probes.
+  // 05: the per-probe planes of relocation, visibility, dilation, the automatic window and the
+  // sky transfer, which a resumed bake copies from the checkpoint with the radiance of finished
+  // probes.
   w.Vector(volume.offset);
   w.Vector(volume.filled);
   w.Vector(volume.autoWindowT);
   w.Pod(uint64_t(volume.visibility.size()));
   for (const std::vector<float>& plane : volume.visibility) w.Vector(plane);
+  w.Pod(int32_t(volume.skyTransferOrder));
+  w.Pod(uint64_t(volume.skyTransfer.size()));
+  for (const std::vector<float>& plane : volume.skyTransfer) w.Vector(plane);
   std::string hash = Sha256Hex(w.bytes());
   w.bytes().append(hash);
   return runtime::WriteFileAtomic(path, w.bytes());
@@ -203,6 +207,13 @@ absl::StatusOr<Checkpoint> Read(const std::filesystem::path& path,
       return corrupt("malformed contents");
     c.volume.visibility.resize(size_t(planes));
     for (std::vector<float>& plane : c.volume.visibility)
+      if (!r.Vector(&plane)) return corrupt("malformed contents");
+    int32_t skyOrder = 0;
+    if (!r.Pod(&skyOrder) || skyOrder < 0 || skyOrder > 64 || !r.Pod(&planes) || planes > 1 << 20)
+      return corrupt("malformed contents");
+    c.volume.skyTransferOrder = skyOrder;
+    c.volume.skyTransfer.resize(size_t(planes));
+    for (std::vector<float>& plane : c.volume.skyTransfer)
       if (!r.Vector(&plane)) return corrupt("malformed contents");
   }
   if (!r.AtEnd()) return corrupt("malformed contents");

@@ -7,9 +7,9 @@
 // File format (little-endian, this machine's float layout): "PBCKPT05", the job digest, the
 // volume (grid, order, active flags, every plane (radiance, irradiance, radiance standard
 // errors), window, stats), the done flags, the work of the attempts so far (BakeWork), the
-// volume's L0 standard errors, its relocation offsets, filled flags, automatic-window parameters
-// and visibility planes (each empty when the bake has none), then the SHA-256 of everything
-// before it. Written atomically
+// volume's L0 standard errors, its relocation offsets, filled flags, automatic-window parameters,
+// visibility planes and sky transfer (order and planes; each empty when the bake has none), then
+// the SHA-256 of everything before it. Written atomically
 // (temporary file, fsync, rename, fsync of the folder); a file that is short, corrupt or for
 // another job digest is rejected on load. "PBCKPT04" files (no offsets, filled flags, window
 // parameters or visibility: read with those planes empty), "PBCKPT03" files (no L0 standard errors:

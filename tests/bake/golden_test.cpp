@@ -63,6 +63,10 @@ std::string HashVolume(const ProbeVolume& v) {
   if (!v.offset.empty()) addFloats(v.offset);
   if (!v.filled.empty()) addFloats(v.filled);
   for (const auto& plane : v.visibility) addFloats(plane);
+  if (v.skyTransferOrder > 0) {
+    add(&v.skyTransferOrder, sizeof v.skyTransferOrder);
+    for (const auto& plane : v.skyTransfer) addFloats(plane);
+  }
   return Sha256Hex(bytes);
 }
 
@@ -194,6 +198,11 @@ std::vector<GoldenCase> Cases() {
       {"demo_relocation_visibility", demoWith([](Settings* s) {
          s->set_relocation_max_offset(0.4);
          s->set_visibility(true);
+       })},
+      // Sky transfer: the demo's sky into T, its lamp into the radiance.
+      {"demo_sky_transfer", demoWith([](Settings* s) {
+         s->set_samples_per_probe(128);
+         s->mutable_sky_transfer()->set_order(2);
        })},
       {"all_lights", AllLightsSpec},
       {"all_lights_independent",

@@ -351,21 +351,26 @@ bool SameSettings(const BakeSettings& a, const BakeSettings& b) {
          a.estimator == b.estimator && a.sampler == b.sampler &&
          a.russianRoulette == b.russianRoulette && a.rrMinDepth == b.rrMinDepth &&
          a.batches == b.batches && a.backfaceFraction == b.backfaceFraction &&
-         a.relocationMaxOffset == b.relocationMaxOffset && a.visibility == b.visibility;
+         a.relocationMaxOffset == b.relocationMaxOffset && a.visibility == b.visibility &&
+         a.skyTransferOrder == b.skyTransferOrder;
 }
 
 TEST(SettingsJson, RoundTripsWithEveryFieldExplicit) {
   for (const char* settings :
        {"{}", R"({"quality": "PREVIEW", "irradiance": true, "window": "LANCZOS"})",
         R"({"shOrder": 5, "seed": "18446744073709551615", "targetRelError": 0.125,
-            "estimator": "DIRECTION_SAMPLING", "russianRoulette": false, "windowWidth": 0.1})"}) {
+            "estimator": "DIRECTION_SAMPLING", "russianRoulette": false, "windowWidth": 0.1})",
+        R"({"skyTransfer": {"order": 3}, "visibility": true})"}) {
     const absl::StatusOr<BakeJob> built = BuildFromData(Patched(kGridOnly, "settings", settings));
     ASSERT_TRUE(built.ok()) << built.status();
     const std::string& json = built->settingsJson;
-    // Every one of the 16 numeric/enum/bool fields is written, quality never.
+    // Every one of the 16 numeric/enum/bool fields is written, quality never; skyTransfer only
+    // when on (so that the settings of bakes without it are as before).
     google::protobuf::Value value;
     ASSERT_TRUE(google::protobuf::util::JsonStringToMessage(json, &value).ok()) << json;
-    EXPECT_EQ(value.struct_value().fields_size(), 16) << json;
+    const bool transfer = built->settings.skyTransferOrder > 0;
+    EXPECT_EQ(value.struct_value().fields_size(), transfer ? 17 : 16) << json;
+    EXPECT_EQ(value.struct_value().fields().contains("skyTransfer"), transfer) << json;
     EXPECT_FALSE(value.struct_value().fields().contains("quality")) << json;
     EXPECT_TRUE(value.struct_value().fields().contains("targetRelError")) << json;
     EXPECT_TRUE(value.struct_value().fields().contains("irradiance")) << json;

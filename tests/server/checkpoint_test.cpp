@@ -81,9 +81,9 @@ TEST(Checkpoint, RoundTripIsBitExact) {
 }
 
 // A resumed bake copies finished probes from the checkpoint: their relocation offsets, visibility
-// moments, filled flags and window parameters must come back with their radiance, bit for bit
-// (format 04 did not hold them, so a probe resumed after a restart lost them).
-TEST(Checkpoint, RelocationVisibilityFilledAndWindowPlanesRoundTrip) {
+// moments, filled flags, window parameters and sky transfer must come back with their radiance, bit
+// for bit (format 04 did not hold them, so a probe resumed after a restart lost them).
+TEST(Checkpoint, RelocationVisibilityFilledWindowAndSkyTransferPlanesRoundTrip) {
   TempDir dir;
   ProbeVolume v = SmallVolume();
   const size_t n = size_t(v.grid.ProbeCount());
@@ -93,6 +93,10 @@ TEST(Checkpoint, RelocationVisibilityFilledAndWindowPlanesRoundTrip) {
   v.visibility.assign(64, std::vector<float>(3 * n));
   for (size_t t = 0; t < 64; ++t)
     for (size_t i = 0; i < 3 * n; ++i) v.visibility[t][i] = float(t) + float(i) * 0.125f;
+  v.skyTransferOrder = 1;
+  v.skyTransfer.assign(4 * 4, std::vector<float>(3 * n));
+  for (size_t e = 0; e < 16; ++e)
+    for (size_t i = 0; i < 3 * n; ++i) v.skyTransfer[e][i] = float(e) - float(i) * 0.5f;
   const std::vector<uint8_t> done(n, 1);
   const auto path = dir.path() / "j.ckpt";
   ASSERT_TRUE(WriteCheckpoint(path, "d", v, done).ok());
@@ -102,6 +106,8 @@ TEST(Checkpoint, RelocationVisibilityFilledAndWindowPlanesRoundTrip) {
   EXPECT_EQ(read->volume.filled, v.filled);
   EXPECT_EQ(read->volume.autoWindowT, v.autoWindowT);
   EXPECT_EQ(read->volume.visibility, v.visibility);
+  EXPECT_EQ(read->volume.skyTransferOrder, 1);
+  EXPECT_EQ(read->volume.skyTransfer, v.skyTransfer);
   // Without those features the planes stay empty.
   ASSERT_TRUE(WriteCheckpoint(path, "d", SmallVolume(), done).ok());
   const auto plain = ReadCheckpoint(path, "d");
@@ -123,11 +129,12 @@ TEST(Checkpoint, ReadsTheFormerFormatWithZeroWork) {
     std::ifstream in(path, std::ios::binary);
     bytes.assign(std::istreambuf_iterator<char>(in), {});
   }
-  // PBCKPT04 is 05 without the four empty planes of offsets, filled flags, window parameters and
-  // visibility (four 8-byte counts) before the 64-character hash; PBCKPT02 is 04 without the work
-  // (3 x 8 bytes) and the L0 standard errors (a count and a float per probe).
+  // PBCKPT04 is 05 without the empty planes of offsets, filled flags, window parameters,
+  // visibility and sky transfer (five 8-byte counts and the 4-byte order) before the hash; PBCKPT02
+  // is 04 without the work (3 x 8 bytes) and the L0 standard errors (a count and a float per
+  // probe).
   ASSERT_EQ(bytes.substr(0, 8), "PBCKPT05");
-  const size_t planesBytes = 4 * 8;
+  const size_t planesBytes = 5 * 8 + 4;
   std::string v04 = "PBCKPT04" + bytes.substr(8, bytes.size() - 8 - planesBytes - 64);
   v04 += Sha256Hex(v04);
   std::ofstream(path, std::ios::binary | std::ios::trunc) << v04;

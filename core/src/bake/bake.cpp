@@ -43,11 +43,11 @@ double Seconds(Clock::time_point since) {
   return std::chrono::duration<double>(Clock::now() - since).count();
 }
 
-// Whether every radiance and irradiance value of `probe` is finite: a sum finite in double can
-// overflow the volume's floats (a point light 1e-5 from a probe gives I / d^2 = 1e40 from I =
-// 1e30).
+// Whether every radiance, irradiance and sky transfer value of `probe` is finite: a sum finite in
+// double can overflow the volume's floats (a point light 1e-5 from a probe gives I / d^2 = 1e40
+// from I = 1e30), and a T entry beyond 65504 its half precision.
 bool FitsInFloats(const ProbeVolume& volume, int64_t probe) {
-  for (const auto* planes : {&volume.radiance, &volume.irradiance}) {
+  for (const auto* planes : {&volume.radiance, &volume.irradiance, &volume.skyTransfer}) {
     for (const std::vector<float>& plane : *planes) {
       for (int ch = 0; ch < 3; ++ch)
         if (!std::isfinite(plane[3 * probe + ch])) return false;
@@ -192,6 +192,12 @@ absl::Status CheckSettings(const BakeJob& job) {
     return FieldError("settings.samplesPerProbe", "must be in [1, 2^32)");
   if (s.maxDepth < 1) return FieldError("settings.maxDepth", "must be >= 1");
   if (s.batches < 1) return FieldError("settings.batches", "must be >= 1");
+  if (s.skyTransferOrder < 0 || s.skyTransferOrder > kMaxShOrder)
+    return FieldError("settings.skyTransfer.order",
+                      "must be in [0, " + std::to_string(kMaxShOrder) + "]");
+  if (s.skyTransferOrder > 0 && s.targetRelError > 0)
+    return FieldError("settings.skyTransfer.order",
+                      "sky transfer does not support adaptive sampling (targetRelError > 0)");
   for (int a = 0; a < 3; ++a) {
     if (job.grid.counts[a] < 1) return FieldError("grid.counts", "must be >= 1 on every axis");
     if (!(job.grid.spacing[a] > 0)) return FieldError("grid.spacing", "must be > 0");
@@ -246,7 +252,10 @@ absl::StatusOr<TraceableScene> TraceableScene::Build(const BakeJob& job,
   TraceableScene s;
   s.offset = LocalOrigin(job.scene);
   PB_ASSIGN_OR_RETURN(s.tracer, TracerScene::Build(job.scene, s.offset));
-  LightSet unweighted(job.scene, *s.tracer);
+  // A sky-transfer bake leaves the environment out of its lights: the escaping paths measure T
+  // instead (probe_integrator.h).
+  LightSet unweighted(job.scene, *s.tracer, kLightTreeMinLights,
+                      /*environment=*/job.settings.skyTransferOrder == 0);
   // Where geometry can hide lights. The pure direction-sampling estimator never chooses a light.
   if (options.lightVisibility && job.settings.estimator != Estimator::kDirectionSampling &&
       !job.scene.meshes.empty()) {
@@ -284,6 +293,13 @@ ProbeVolume NewVolume(const BakeJob& job, const BakeOptions& options,
     volume.radianceStdError.assign(coeffs, std::vector<float>(3 * probeCount, 0.0f));
   if (settings.visibility)
     volume.visibility.assign(kVisibilityTexels, std::vector<float>(3 * probeCount, 0.0f));
+  if (settings.skyTransferOrder > 0) {
+    volume.skyTransferOrder = settings.skyTransferOrder;
+    const size_t entries = size_t(coeffs) * size_t(volume.SkyCoeffCount());
+    volume.skyTransfer.assign(entries, std::vector<float>(3 * probeCount, 0.0f));
+    if (options.coefficientErrors)
+      volume.skyTransferStdError.assign(entries, std::vector<float>(3 * probeCount, 0.0f));
+  }
   return volume;
 }
 
@@ -370,7 +386,8 @@ ProbesToBake ListProbesToBake(const BakeJob& job, const BakeOptions& options, Pr
   const bool resume = options.resumeFrom && options.resumeDone &&
                       options.resumeFrom->grid.ProbeCount() == probeCount &&
                       options.resumeDone->size() == size_t(probeCount) &&
-                      options.resumeFrom->shOrder == job.settings.shOrder;
+                      options.resumeFrom->shOrder == job.settings.shOrder &&
+                      options.resumeFrom->skyTransferOrder == job.settings.skyTransferOrder;
   if (options.resumeFrom && !resume)
     log->warn("resume data does not match this job; baking every probe");
   ProbesToBake list;
@@ -427,8 +444,9 @@ class ProbeBaker {
   // Bakes the probe at start.p into probe `probe` of *volume, unless `cancel` or `stop` is raised
   // before it is done.
   Outcome Bake(int64_t probe, const ProbeStart& start, ProbeVolume* volume) const {
-    ProbeEstimate estimate(ShCoeffCount(settings_.shOrder), maxBatches_, sampledMayBeNonZero_,
-                           settings_.visibility);
+    ProbeEstimate estimate(
+        ShCoeffCount(settings_.shOrder), maxBatches_, sampledMayBeNonZero_, settings_.visibility,
+        settings_.skyTransferOrder > 0 ? ShCoeffCount(settings_.skyTransferOrder) : 0);
     AddDeltaLights(start.p, &estimate);
     int batches = 0;
     if (!TraceRounds(start, &estimate, &batches)) return Outcome::kStopped;
@@ -496,7 +514,8 @@ class ProbeBaker {
       ProbeIntegrator::BatchWork work[ProbeIntegrator::kSamplesPerCall];
       for (int b = from; b < to; ++b)
         work[b - from] = {BatchSize(settings_.samplesPerProbe, maxBatches_, b),
-                          estimate->BatchSum(b), estimate->BatchMoments(b), visibilityMaxDistance_};
+                          estimate->BatchSum(b), estimate->BatchMoments(b), visibilityMaxDistance_,
+                          estimate->BatchTransfer(b)};
       if (!integrator_.TraceBatches(start.p, start.key, uint32_t(from), {work, size_t(to - from)},
                                     counters_, cancel_))
         cancelled.store(true, std::memory_order_relaxed);
@@ -583,7 +602,9 @@ absl::Status OverflowError(const ProbeGrid& grid, int64_t probe) {
   return absl::InvalidArgumentError(absl::StrCat(
       "grid: the probe (", i, ", ", j, ", ", k, ") at (", at.x, ", ", at.y, ", ", at.z,
       ") receives more light than the volume's 32-bit floats hold (over 3.4e38 in a "
-      "coefficient): is a point or spot light almost on it? (their light grows as 1 / d^2)"));
+      "coefficient): is a point or spot light almost on it? (their light grows as 1 / d^2); or, "
+      "with settings.skyTransfer, an entry of its transfer is above 65504, the largest half "
+      "float: an albedo too close to 1 in a closed space?"));
 }
 
 // Records, once every probe is baked, the AUTO window's summary (when per-probe windows were

@@ -8,6 +8,7 @@
 #include "probebake/math/frame.h"
 #include "probebake/math/sincos_turns.h"
 #include "probebake/sampling/warps.h"
+#include "probebake/sh/sh_basis.h"
 
 namespace probebake {
 namespace {
@@ -234,6 +235,41 @@ Vec3d EnvironmentLight::RadianceAndPdf(const Vec3d& wi, const Vec3d* n, double* 
   const CellIndex cell = CellOf(mapFromWorld_ * wi);
   *pdf = distribution_->Pmf(cell.iy, cell.ix) / CellSolidAngle(cell.ix, cell.iy);
   return TexelRadiance(cell.ix, cell.iy);
+}
+
+std::vector<Vec3d> EnvironmentLight::ProjectSh(int order) const {
+  std::vector<Vec3d> out(size_t(ShCoeffCount(order)));
+  if (black_) return out;
+  if (kind_ == Environment::Kind::kUniform) {
+    out[0] = uniform_ * (2 * std::sqrt(kPi));
+    return out;
+  }
+  // Per cell, a 3-point Gauss-Legendre rule on each axis of (sin latitude, longitude), where the
+  // solid angle is dz dlon: the cell's integral of Y_i times its constant radiance.
+  constexpr double kNodes[3] = {-0.7745966692414834, 0.0, 0.7745966692414834};
+  constexpr double kWeights[3] = {5.0 / 9, 8.0 / 9, 5.0 / 9};
+  const int n = ShCoeffCount(order);
+  double y[kMaxShCoeffCount];
+  for (int iy = 0; iy < map_->height; ++iy) {
+    for (int ix = 0; ix < width_; ++ix) {
+      const Vec3d radiance = TexelRadiance(ix, iy);
+      if (MaxComponent(radiance) <= 0) continue;
+      const Cell c = CellBounds(ix, iy);
+      double cell[kMaxShCoeffCount] = {};
+      for (int a = 0; a < 3; ++a) {
+        const double z = 0.5 * (c.z0 + c.z1) + 0.5 * (c.z1 - c.z0) * kNodes[a];
+        for (int b = 0; b < 3; ++b) {
+          const double lon = 0.5 * (c.lon0 + c.lon1) + 0.5 * (c.lon1 - c.lon0) * kNodes[b];
+          EvalShBasis(order, worldFromMap_ * MapDirection(lon, z), y);
+          const double w = kWeights[a] * kWeights[b];
+          for (int i = 0; i < n; ++i) cell[i] += w * y[i];
+        }
+      }
+      const double area = 0.25 * (c.z1 - c.z0) * (c.lon1 - c.lon0);
+      for (int i = 0; i < n; ++i) out[size_t(i)] += radiance * (cell[i] * area);
+    }
+  }
+  return out;
 }
 
 }  // namespace probebake

@@ -54,6 +54,9 @@ class EnvironmentLight {
   // Mean luminance over the sphere times pi: the irradiance a surface would get from an
   // unoccluded hemisphere of average sky (the light's selection importance).
   double Importance() const { return importance_; }
+  // The SH projection of order `order` of the radiance (RGB, (order+1)^2 entries): uniform
+  // exactly, a map cell by cell (probebake/bake/relight.h, ProjectEnvironmentSh).
+  std::vector<Vec3d> ProjectSh(int order) const;
 
  private:
   struct Cell {

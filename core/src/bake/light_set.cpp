@@ -9,7 +9,8 @@
 
 namespace probebake {
 
-LightSet::LightSet(const Scene& scene, const TracerScene& tracer, size_t treeMinLights) {
+LightSet::LightSet(const Scene& scene, const TracerScene& tracer, size_t treeMinLights,
+                   bool environment) {
   const Vec3d& offset = tracer.offset();
   for (uint32_t i = 0; i < scene.lights.size(); ++i) {
     const Light& light = scene.lights[i];
@@ -42,7 +43,8 @@ LightSet::LightSet(const Scene& scene, const TracerScene& tracer, size_t treeMin
     lights_.emplace_back(std::move(*light));
   }
 
-  environment_ = std::make_unique<EnvironmentLight>(scene.environment);
+  environment_ =
+      std::make_unique<EnvironmentLight>(environment ? scene.environment : Environment{});
   if (!environment_->IsBlack()) {
     distantLights_.push_back(uint32_t(lights_.size()));
     lights_.emplace_back(EnvironmentEmitter(*environment_));

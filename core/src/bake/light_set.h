@@ -51,9 +51,11 @@ class LightSet {
  public:
   // The scene's lights, without a visibility table. treeMinLights: the number of lights of a kind
   // from which they are chosen through a light tree (tests lower it to exercise the tree on small
-  // scenes). `scene` and `tracer` (built from it) outlive the set.
+  // scenes). environment false: the scene's environment is left out (black to every ray), as a
+  // sky-transfer bake needs (its sky is applied later). `scene` and `tracer` (built from it)
+  // outlive the set.
   LightSet(const Scene& scene, const TracerScene& tracer,
-           size_t treeMinLights = kLightTreeMinLights);
+           size_t treeMinLights = kLightTreeMinLights, bool environment = true);
   // `lights`, its importance scaled from now on by `visibility`'s factors: a table built for
   // lights.ImportanceSize() entries over this scene (LightVisibility::Build from `lights`), or an
   // empty one.

@@ -4,6 +4,8 @@
 #include <limits>
 #include <sstream>
 
+#include <Imath/half.h>
+
 #include "probebake/base/check.h"
 #include "probebake/sh/sh_basis.h"
 #include "probebake/sh/sh_convolution.h"
@@ -11,13 +13,47 @@
 namespace probebake {
 
 ProbeEstimate::ProbeEstimate(int coeffCount, int maxBatches, bool sampledMayBeNonZero,
-                             bool visibility)
+                             bool visibility, int skyCoeffCount)
     : coeffs_(coeffCount),
       sums_(size_t(maxBatches) * 3 * coeffCount, 0.0),
       counts_(maxBatches, 0),
       exact_(size_t(3) * coeffCount, 0.0),
       moments_(visibility ? size_t(maxBatches) * kMomentsSize : 0, 0.0),
+      skyCoeffs_(skyCoeffCount),
+      transfer_(size_t(maxBatches) * TransferSize(), 0.0),
       sampledMayBeNonZero_(sampledMayBeNonZero) {}
+
+std::vector<double> ProbeEstimate::TransferMean(int batches) const {
+  const size_t size = TransferSize();
+  const int64_t n = Samples(batches);
+  std::vector<double> mean(size, 0.0);
+  // In batch order, as Mean: the same bits whatever thread traced each batch.
+  for (int b = 0; b < batches; ++b)
+    for (size_t k = 0; k < size; ++k) mean[k] += transfer_[size_t(b) * size + k];
+  if (n > 0)
+    for (double& m : mean) m /= double(n);
+  return mean;
+}
+
+std::vector<double> ProbeEstimate::TransferErrors(int batches) const {
+  const size_t size = TransferSize();
+  const int64_t n = Samples(batches);
+  int used = 0;
+  for (int b = 0; b < batches; ++b) used += counts_[b] > 0 ? 1 : 0;
+  if (used < 2) return std::vector<double>(size, std::numeric_limits<double>::infinity());
+  const std::vector<double> mean = TransferMean(batches);
+  std::vector<double> var(size, 0.0);
+  for (int b = 0; b < batches; ++b) {
+    if (counts_[b] == 0) continue;
+    const double wb = double(counts_[b]) / double(n);
+    for (size_t k = 0; k < size; ++k) {
+      const double d = transfer_[size_t(b) * size + k] / double(counts_[b]) - mean[k];
+      var[k] += wb * wb * d * d;
+    }
+  }
+  for (double& v : var) v = std::sqrt(v * double(used) / double(used - 1));
+  return var;
+}
 
 std::vector<double> ProbeEstimate::Moments(int batches) const {
   std::vector<double> total(kMomentsSize, 0.0);
@@ -187,7 +223,23 @@ double ProbeFinisher::Finish(const ProbeEstimate& estimate, int batches, int64_t
       out[2] = float(n);
     }
   }
+  if (!volume->skyTransfer.empty()) {
+    const std::vector<double> t = estimate.TransferMean(batches);
+    for (size_t e = 0; e < volume->skyTransfer.size(); ++e)
+      for (int ch = 0; ch < 3; ++ch)
+        volume->skyTransfer[e][3 * probe + ch] = RoundToHalf(float(t[3 * e + ch]));
+    if (!volume->skyTransferStdError.empty()) {
+      const std::vector<double> se = estimate.TransferErrors(batches);
+      for (size_t e = 0; e < volume->skyTransfer.size(); ++e)
+        for (int ch = 0; ch < 3; ++ch)
+          volume->skyTransferStdError[e][3 * probe + ch] = float(se[3 * e + ch]);
+    }
+  }
   return autoT;
+}
+
+float RoundToHalf(float x) {
+  return float(Imath::half(x));
 }
 
 ProbeVolume EmptyLike(const ProbeVolume& v) {
@@ -203,6 +255,9 @@ ProbeVolume EmptyLike(const ProbeVolume& v) {
   out.irradiance.assign(v.irradiance.size(), std::vector<float>(planeSize, 0.0f));
   out.radianceStdError.assign(v.radianceStdError.size(), std::vector<float>(planeSize, 0.0f));
   out.visibility.assign(v.visibility.size(), std::vector<float>(planeSize, 0.0f));
+  out.skyTransferOrder = v.skyTransferOrder;
+  out.skyTransfer.assign(v.skyTransfer.size(), std::vector<float>(planeSize, 0.0f));
+  out.skyTransferStdError.assign(v.skyTransferStdError.size(), std::vector<float>(planeSize, 0.0f));
   out.autoWindowT.assign(v.autoWindowT.size(), 0.0f);
   out.stdError.assign(v.stdError.size(), 0.0f);
   out.stdErrorL0.assign(v.stdErrorL0.size(), 0.0f);
@@ -226,6 +281,12 @@ void CopyProbe(const ProbeVolume& from, int64_t probe, ProbeVolume* to) {
     for (size_t t = 0; t < to->visibility.size(); ++t)
       for (int ch = 0; ch < 3; ++ch)
         to->visibility[t][3 * probe + ch] = from.visibility[t][3 * probe + ch];
+  for (auto [src, dst] : {std::pair{&from.skyTransfer, &to->skyTransfer},
+                          std::pair{&from.skyTransferStdError, &to->skyTransferStdError}}) {
+    if (dst->empty() || src->size() != dst->size()) continue;
+    for (size_t e = 0; e < dst->size(); ++e)
+      for (int ch = 0; ch < 3; ++ch) (*dst)[e][3 * probe + ch] = (*src)[e][3 * probe + ch];
+  }
   if (!to->offset.empty() && from.offset.size() == to->offset.size())
     for (int ch = 0; ch < 3; ++ch) to->offset[3 * probe + ch] = from.offset[3 * probe + ch];
   if (!to->autoWindowT.empty() && from.autoWindowT.size() == to->autoWindowT.size())

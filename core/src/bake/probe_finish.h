@@ -41,8 +41,10 @@ class ProbeEstimate {
   // sampledMayBeNonZero: false when the scene gives every sample zero by construction (no light
   // to sample, and delta lights with nothing to scatter them: no mesh of non-zero albedo, no
   // scattering medium), so that identical all-zero batches are exact rather than unknown.
-  // visibility: also keep each batch's visibility moments (BatchMoments).
-  ProbeEstimate(int coeffCount, int maxBatches, bool sampledMayBeNonZero, bool visibility = false);
+  // visibility: also keep each batch's visibility moments (BatchMoments). skyCoeffCount > 0: also
+  // keep each batch's sky transfer sum (BatchTransfer), (Ls+1)^2 sky coefficients.
+  ProbeEstimate(int coeffCount, int maxBatches, bool sampledMayBeNonZero, bool visibility = false,
+                int skyCoeffCount = 0);
 
   // The running sum of batch b: coeffCount x 3 doubles, coefficient-major RGB.
   std::span<double> BatchSum(int b) {
@@ -58,6 +60,17 @@ class ProbeEstimate {
   // The first `batches` batches' moments summed in batch order: per texel (sum 1/t, sum 1/t^2,
   // rays).
   std::vector<double> Moments(int batches) const;
+  // The running sky transfer sum of batch b (ProbeIntegrator::BatchWork::transfer's layout);
+  // empty without sky transfer.
+  std::span<double> BatchTransfer(int b) {
+    if (transfer_.empty()) return {};
+    const size_t size = TransferSize();
+    return {transfer_.data() + size_t(b) * size, size};
+  }
+  // Pooled mean of the first `batches` batches' T, and the standard error of every entry (the
+  // estimator of CoefficientErrors).
+  std::vector<double> TransferMean(int batches) const;
+  std::vector<double> TransferErrors(int batches) const;
   // Adds an exactly known term radiance * Y(wi) (a delta light seen from the probe).
   void AddExact(int order, const Vec3d& wi, const Vec3d& radiance);
 
@@ -82,6 +95,9 @@ class ProbeEstimate {
   std::vector<double> exact_;  // coeffs x 3
   static constexpr int kMomentsSize = 3 * kVisibilityTexels;
   std::vector<double> moments_;  // maxBatches x kMomentsSize, or empty
+  size_t TransferSize() const { return size_t(3) * coeffs_ * skyCoeffs_; }
+  int skyCoeffs_;
+  std::vector<double> transfer_;  // maxBatches x TransferSize(), or empty
   bool sampledMayBeNonZero_;
 };
 
@@ -94,7 +110,8 @@ class ProbeFinisher {
   // Stores the estimate of the first `batches` batches as probe `probe` of `volume` (radiance,
   // irradiance and window when requested, std_error, std_error_l0, sample_count, and the
   // visibility moments when the volume has them: per texel mean 1/t, mean 1/t^2 and the ray
-  // count; a texel no ray went through reads as all free, (0, 0, 0)). Returns the
+  // count; a texel no ray went through reads as all free, (0, 0, 0); the sky transfer, rounded to
+  // half precision, when the volume has it). Returns the
   // AUTO window's heat parameter t chosen for this probe (0: left unwindowed; 0 for other windows).
   double Finish(const ProbeEstimate& estimate, int batches, int64_t probe,
                 ProbeVolume* volume) const;
@@ -103,6 +120,10 @@ class ProbeFinisher {
   const BakeSettings& settings_;
   ShBandWindow window_;  // HANNING, LANCZOS: fixed; AUTO: chosen per probe
 };
+
+// x rounded to the nearest half-precision (IEEE binary16) number, ties to even; +-inf beyond
+// 65504 (the largest half). The precision of the stored sky transfer (docs/volume-format.md).
+float RoundToHalf(float x);
 
 // A volume with the layout of `v` (grid, order, active mask, validity, window, planes) whose
 // per-probe values are all zero.

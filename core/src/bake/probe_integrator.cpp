@@ -49,6 +49,26 @@ void Project(int order, const Vec3d& w, const Vec3d& value, std::span<double> su
   }
 }
 
+// transfer[(r ns + s) 3 + c] += Y_r(wp) weight Y_s(wSky) beta[c], ns = (skyOrder+1)^2: one
+// escaped path's term of the sky transfer (probe_integrator.h).
+void ProjectTransfer(int order, const Vec3d& wp, double weight, int skyOrder, const Vec3d& wSky,
+                     const Vec3d& beta, std::span<double> transfer) {
+  double yProbe[kMaxShCoeffCount], ySky[kMaxShCoeffCount];
+  EvalShBasis(order, wp, yProbe);
+  EvalShBasis(skyOrder, wSky, ySky);
+  const int n = ShCoeffCount(order), ns = ShCoeffCount(skyOrder);
+  double* t = transfer.data();
+  for (int r = 0; r < n; ++r) {
+    const double wr = yProbe[r] * weight;
+    for (int k = 0; k < ns; ++k, t += 3) {
+      const double w = wr * ySky[k];
+      t[0] += w * beta.x;
+      t[1] += w * beta.y;
+      t[2] += w * beta.z;
+    }
+  }
+}
+
 // The 16-bit x and y interleaved, x in the even places: the cell's index along a Morton (Z-order)
 // curve.
 uint32_t MortonInterleave(uint32_t x, uint32_t y) {
@@ -303,6 +323,9 @@ struct PathState {
   double total = 0;
   // The distance to the surface the path's first ray (from the probe) hit; +inf on a miss.
   double firstHit = 0;
+  // With sky transfer: whether the path escaped the scene, with which throughput and direction.
+  bool escaped = false;
+  Vec3d skyBeta, skyDir;
 };
 
 // Right after a restart, draw(numbers) draws from `numbers` as it would from the sampler: a
@@ -448,7 +471,12 @@ template <typename S>
 
 ProbeIntegrator::ProbeIntegrator(const Scene& scene, const TracerScene& tracer,
                                  const LightSet& lights, const BakeSettings& settings, bool packets)
-    : scene_(scene), tracer_(tracer), lights_(lights), settings_(settings), packets_(packets) {
+    : scene_(scene),
+      tracer_(tracer),
+      lights_(lights),
+      settings_(settings),
+      packets_(packets),
+      skyOrder_(settings.skyTransferOrder) {
   if (scene.medium) medium_.emplace(*scene.medium, tracer.offset());
   switch (settings.estimator) {
     case Estimator::kNeeMis:
@@ -646,6 +674,7 @@ void ProbeIntegrator::StartAtProbe(const Probe& probe, std::span<S> samplers,
     s.pPrev = probe.p;
     s.hasNormal = false;
     s.total = probe.total;
+    s.escaped = false;
 
     shadow.key[j] = kNoRay;
     if (!probe.lightSample) continue;
@@ -724,6 +753,11 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
         }
       }
       if (!scattered) {
+        if (skyOrder_ > 0 && !g->found[k]) {
+          s.escaped = true;
+          s.skyBeta = s.beta;
+          s.skyDir = s.wi;
+        }
         const std::span<const double> before =
             bounce == 1 ? probe.importance
                         : std::span<const double>(importanceBefore + j * size, size);
@@ -815,6 +849,11 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
     }
     const Vec3d& radiance = g.path[j].radiance;
     if (MaxComponent(radiance) > 0) Project(order, g.wi[j], radiance / probe.pdf, sum);
+    const PathState& path = g.path[j];
+    const std::span<double> transfer = work[g.batch[j]].transfer;
+    if (!transfer.empty() && path.escaped && MaxComponent(path.skyBeta) > 0)
+      ProjectTransfer(order, g.wi[j], 1 / probe.pdf, skyOrder_, path.skyDir, path.skyBeta,
+                      transfer);
     const std::span<double> moments = work[g.batch[j]].moments;
     if (!moments.empty()) {
       const double s = InverseDistance(g.path[j].firstHit, work[g.batch[j]].maxDistance);

@@ -42,6 +42,20 @@
 // point is uniform over the sphere, so every batch is unbiased, and independent rotations keep
 // the batches independent: their spread is an honest standard error (probe_finish.h).
 //
+// Sky transfer (settings.skyTransferOrder = Ls > 0): the environment is not one of the lights
+// (LightSet built without it), so no light sample and no escaping ray finds it, and the radiance
+// sums hold the local lights alone. Instead a path whose ray escapes the scene in direction w
+// with throughput beta (the product of the albedos, roulette and transmittance since the probe)
+// adds, for a probe direction wp drawn with pdf p,
+//   T[r][s] += Y_r(wp) / p * beta * Y_s(w)    (r < (L+1)^2, s < (Ls+1)^2, per RGB channel),
+// which estimates T[r][s] = integral over wp of Y_r(wp) times the radiance at the probe from wp
+// under a sky of radiance Y_s: the path is the same one that a bake with that sky would trace,
+// and the escape is what direction sampling alone would count of it (weight 1, no MIS: there is
+// no sky to sample yet). So sum_s T[r][s] sky_s is, sample by sample, an unbiased estimate of
+// what a bake under the sky sum_s sky_s Y_s would add to coefficient r, with the BSDF-sampling
+// estimator in place of NEE + MIS for the sky. Local lights keep NEE + MIS along the same paths.
+// Escapes past maxDepth count, as the environment's emission does in an ordinary bake.
+//
 // One driver traces every sample, as waves: a group of samples starts together at the probe
 // (each path's first ray, each probe light sample's shadow ray), and wave d then shades every
 // path's vertex d and traces its rays (its light sample's shadow ray, its continuation). A
@@ -111,11 +125,14 @@ class ProbeIntegrator {
   // per texel the sum of inverse first-hit distances (InverseDistance(t, maxDistance): a miss
   // or a hit beyond maxDistance counting as 0), of their squares, and the ray count, in sample
   // order.
+  // With sky transfer, `transfer` is the batch's T sum ((shOrder+1)^2 x (Ls+1)^2 x 3 doubles,
+  // row-major by probe coefficient, then sky coefficient, then RGB); empty otherwise.
   struct BatchWork {
     int64_t count = 0;
     std::span<double> sum;
     std::span<double> moments = {};
     double maxDistance = 0;
+    std::span<double> transfer = {};
   };
   // TraceBatch for batches firstBatch + k, k < work.size(), with work[k]'s count and sum: the
   // same sums as one TraceBatch call each. Traced together, small batches' rays from the probe
@@ -216,6 +233,7 @@ class ProbeIntegrator {
   bool mis_;            // weight the two by the power heuristic
   bool packets_;        // trace calls large enough for them as packets
   RayObserver* observer_ = nullptr;
+  int skyOrder_;  // Ls of the sky transfer; 0: off
 };
 
 }  // namespace probebake

@@ -462,6 +462,23 @@ void FoldDefaults(bool environmentKept, bool mediumKept, v1::Scene* scene, v1::G
 
 }  // namespace
 
+absl::StatusOr<Environment> LoadEnvironment(const v1::Environment& spec, const AssetSource& assets,
+                                            const JobLimits& limits) {
+  // Validated as a job's environment is, in a job of nothing else.
+  v1::JobSpec job;
+  *job.mutable_scene()->mutable_environment() = spec;
+  for (int a = 0; a < 3; ++a) {
+    job.mutable_grid()->add_min(0);
+    job.mutable_grid()->add_max(0);
+    job.mutable_grid()->add_counts(1);
+  }
+  PB_RETURN_IF_ERROR(ValidateJobSpec(job, limits));
+  v1::Environment canonical;
+  Environment env;
+  PB_RETURN_IF_ERROR(BuildEnvironment(spec, assets, limits, &canonical, &env));
+  return env;
+}
+
 absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource& assets,
                                      const JobLimits& limits) {
   PB_RETURN_IF_ERROR(ValidateJobSpec(spec, limits));

@@ -76,6 +76,7 @@ BakeSettings ResolveSettings(const v1::BakeSettings& s) {
   r.backfaceFraction = s.has_backface_fraction() ? s.backface_fraction() : 0.5;
   r.relocationMaxOffset = s.has_relocation_max_offset() ? s.relocation_max_offset() : 0;
   r.visibility = s.has_visibility() && s.visibility();
+  r.skyTransferOrder = s.has_sky_transfer() ? s.sky_transfer().order() : 0;
   return r;
 }
 
@@ -121,6 +122,8 @@ v1::BakeSettings SettingsToProto(const BakeSettings& r) {
   s.set_backface_fraction(r.backfaceFraction);
   s.set_relocation_max_offset(r.relocationMaxOffset);
   s.set_visibility(r.visibility);
+  // Set only when on: the settings of bakes without it (their digests and metadata) are unchanged.
+  if (r.skyTransferOrder > 0) s.mutable_sky_transfer()->set_order(r.skyTransferOrder);
   return s;
 }
 

@@ -732,6 +732,26 @@ class Validator {
                   "must be in [0, 0.5] (a fraction of the smallest grid spacing; got " +
                       Num(s.relocation_max_offset()) + ")");
     }
+    if (s.has_sky_transfer()) {
+      const int order = s.sky_transfer().order();
+      const std::string path = p + ".skyTransfer.order";
+      if (order < 0 || order > kMaxJobShOrder) {
+        errors_.Add(path, "must be in [0, " + Num(kMaxJobShOrder) +
+                              "] (the sky's SH order; 0 turns sky transfer off; got " + Num(order) +
+                              ")");
+      } else if (Above(order, limits_.maxShOrder)) {
+        errors_.Add(path, Num(order) + " is above the limit of " + Num(limits_.maxShOrder));
+      } else if (order > 0 &&
+                 (s.has_target_rel_error() ? s.target_rel_error() : preset.targetRelError) > 0) {
+        // std_error measures the radiance grids (the local lights), not T: adaptive sampling
+        // would stop on the local lights' noise alone.
+        errors_.Add(path, std::string("sky transfer does not support adaptive sampling "
+                                      "(targetRelError > 0") +
+                              (s.has_target_rel_error() ? "" : ", from the quality preset") +
+                              "): std_error measures the local lights only; set "
+                              "targetRelError to 0");
+      }
+    }
   }
 
   void SamplesLimit(int64_t samples, const std::string& path) {

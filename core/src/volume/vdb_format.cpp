@@ -156,6 +156,23 @@ absl::Status ValidateVolume(const ProbeVolume& volume) {
   if (!volume.filled.empty() && volume.filled.size() != probes) {
     return sizeError("volume.filled", volume.filled.size(), probes);
   }
+  if (volume.skyTransferOrder < 0 || volume.skyTransferOrder > kMaxVolumeShOrder) {
+    return absl::InvalidArgumentError(
+        "volume.skyTransferOrder: " + std::to_string(volume.skyTransferOrder) + " is outside [0, " +
+        std::to_string(kMaxVolumeShOrder) + "]");
+  }
+  const size_t transferEntries = volume.skyTransferOrder > 0
+                                     ? size_t(volume.CoeffCount()) * size_t(volume.SkyCoeffCount())
+                                     : 0;
+  if (volume.skyTransfer.size() != transferEntries) {
+    return sizeError("volume.skyTransfer", volume.skyTransfer.size(), transferEntries);
+  }
+  for (size_t e = 0; e < volume.skyTransfer.size(); ++e) {
+    if (volume.skyTransfer[e].size() != 3 * probes) {
+      return sizeError("volume.skyTransfer[" + std::to_string(e) + "]",
+                       volume.skyTransfer[e].size(), 3 * probes);
+    }
+  }
   if (!volume.visibility.empty()) {
     if (volume.visibility.size() != size_t(kVisibilityTexels)) {
       return sizeError("volume.visibility", volume.visibility.size(), kVisibilityTexels);
@@ -192,6 +209,9 @@ std::string IrradianceGridName(int coefficient) {
 }
 std::string VisibilityGridName(int texel) {
   return ShGridName("visibility_", texel);
+}
+std::string SkyTransferGridName(int row, int column) {
+  return ShGridName("sky_transfer_", row) + ShGridName("_", column);
 }
 
 VolumeMetadata VolumeMetadataFor(const BakeJob& job) {

@@ -34,11 +34,16 @@ inline constexpr const char* kKeyHasOffset = "has_offset";
 inline constexpr const char* kKeyHasFilled = "has_filled";
 inline constexpr const char* kKeyVisibilitySize = "visibility_size";
 inline constexpr const char* kKeyVisibilityMaxDistance = "visibility_max_distance";
+inline constexpr const char* kKeySkyTransferOrder = "sky_transfer_order";
+inline constexpr const char* kKeySkyTransferPrecision = "sky_transfer_precision";
+inline constexpr const char* kSkyTransferPrecision = "half";
 
 // Per-grid metadata of SH grids.
 inline constexpr const char* kKeyShIndex = "sh_index";
 inline constexpr const char* kKeyShL = "sh_l";
 inline constexpr const char* kKeyShM = "sh_m";
+// Of sky transfer grids: the sky's coefficient (column s; sh_index, sh_l and sh_m give the row).
+inline constexpr const char* kKeySkyShIndex = "sky_sh_index";
 
 inline constexpr const char* kShBasis = "real-orthonormal-condon-shortley-zpolar";
 inline constexpr const char* kQuantity = "radiance";

@@ -212,8 +212,7 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
 
   int32_t format = 0;
   PB_RETURN_IF_ERROR(meta.Get(kKeyFormat, &format));
-  if (format != kProbeVolumeFormat && format != kProbeVolumeFormat3 &&
-      format != kProbeVolumeFormat2 && format != kProbeVolumeFormat1) {
+  if (format < kProbeVolumeFormat1 || format > kProbeVolumeFormat) {
     return meta.Error(kKeyFormat, std::to_string(format) + ", this reader knows " +
                                       std::to_string(kProbeVolumeFormat1) + " to " +
                                       std::to_string(kProbeVolumeFormat));
@@ -276,6 +275,20 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
   if (hasFilled) expected.push_back({kFilledGridName, false});
   const int visibilityTexels = visibilitySize * visibilitySize;
   for (int t = 0; t < visibilityTexels; ++t) expected.push_back({VisibilityGridName(t), true});
+  // Format 4's optional sky transfer, announced by its order.
+  if (format >= kProbeVolumeFormat4 && meta.Has(kKeySkyTransferOrder)) {
+    int32_t skyOrder = 0;
+    PB_RETURN_IF_ERROR(meta.Get(kKeySkyTransferOrder, &skyOrder));
+    if (skyOrder < 1 || skyOrder > kMaxVolumeShOrder) {
+      return meta.Error(kKeySkyTransferOrder, std::to_string(skyOrder) + " is outside [1, " +
+                                                  std::to_string(kMaxVolumeShOrder) + "]");
+    }
+    PB_RETURN_IF_ERROR(meta.Expect(kKeySkyTransferPrecision, kSkyTransferPrecision));
+    volume.skyTransferOrder = skyOrder;
+  }
+  const int skyCoefficients = volume.skyTransferOrder > 0 ? volume.SkyCoeffCount() : 0;
+  for (int r = 0; r < (skyCoefficients > 0 ? coefficients : 0); ++r)
+    for (int s = 0; s < skyCoefficients; ++s) expected.push_back({SkyTransferGridName(r, s), true});
   std::map<std::string, vdb::GridBase::Ptr> headers;  // metadata and transform only
   const vdb::GridPtrVecPtr allHeaders = file->readAllGridMetadata();
   for (const vdb::GridBase::Ptr& header : *allHeaders) {
@@ -495,6 +508,12 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
   volume.visibility.resize(size_t(visibilityTexels));
   for (int t = 0; t < visibilityTexels; ++t) {
     PB_RETURN_IF_ERROR(readInto(VisibilityGridName(t), vecTag, 3, &volume.visibility[size_t(t)]));
+  }
+  volume.skyTransfer.resize(size_t(coefficients) * size_t(skyCoefficients));
+  for (size_t e = 0; e < volume.skyTransfer.size(); ++e) {
+    PB_RETURN_IF_ERROR(
+        readInto(SkyTransferGridName(int(e) / skyCoefficients, int(e) % skyCoefficients), vecTag, 3,
+                 &volume.skyTransfer[e]));
   }
   // Format 3's moments are of distances, which no sampler here reads: a volume without them.
   if (format == kProbeVolumeFormat3) volume.visibility.clear();

@@ -145,6 +145,7 @@ vdb::MetaMap FileMetadata(const ProbeVolume& volume, const VolumeMetadata& meta,
                           const std::string& statsJson) {
   const ProbeGrid& g = volume.grid;
   vdb::MetaMap m;
+  const bool transfer = volume.skyTransferOrder > 0;
   m.insertMeta(kKeyFormat, vdb::Int32Metadata(kProbeVolumeFormat));
   m.insertMeta(kKeyShOrder, vdb::Int32Metadata(volume.shOrder));
   m.insertMeta(kKeyShBasis, vdb::StringMetadata(kShBasis));
@@ -174,6 +175,11 @@ vdb::MetaMap FileMetadata(const ProbeVolume& volume, const VolumeMetadata& meta,
   m.insertMeta(
       kKeyVisibilityMaxDistance,
       vdb::DoubleMetadata(volume.visibility.empty() ? 0.0 : VisibilityMaxDistance(volume.grid)));
+  // The sky transfer's keys, only with a sky transfer.
+  if (transfer) {
+    m.insertMeta(kKeySkyTransferOrder, vdb::Int32Metadata(volume.skyTransferOrder));
+    m.insertMeta(kKeySkyTransferPrecision, vdb::StringMetadata(kSkyTransferPrecision));
+  }
   return m;
 }
 
@@ -186,7 +192,7 @@ absl::Status WriteGrids(std::ostream& os, const std::string& path, const ProbeVo
   const bool hasIrradiance = !volume.irradiance.empty();
   const int32_t gridCount = coefficients * (hasIrradiance ? 2 : 1) + 4 +
                             (volume.offset.empty() ? 0 : 1) + (volume.filled.empty() ? 0 : 1) +
-                            int32_t(volume.visibility.size());
+                            int32_t(volume.visibility.size()) + int32_t(volume.skyTransfer.size());
   const vdb::math::Transform::Ptr transform = ProbeTransform(volume.grid);
 
   StreamingArchive archive;
@@ -256,6 +262,20 @@ absl::Status WriteGrids(std::ostream& os, const std::string& path, const ProbeVo
     PB_RETURN_IF_ERROR(writeVec3(VisibilityGridName(int(t)), volume.visibility[t],
                                  releasable ? &releasable->visibility[t] : nullptr));
   }
+  // Format 4: the sky transfer, row-major, each grid saved as half floats (OpenVDB's own
+  // saveFloatAsHalf, which stock tools read back as floats): the values are half-precision
+  // numbers already (the bake rounds them), so nothing is lost.
+  const int skyCoefficients = volume.SkyCoeffCount();
+  for (size_t e = 0; e < volume.skyTransfer.size(); ++e) {
+    const int row = int(e) / skyCoefficients, column = int(e) % skyCoefficients;
+    const std::string name = SkyTransferGridName(row, column);
+    vdb::Vec3SGrid::Ptr grid = BuildShGrid(volume, name, transform, volume.skyTransfer[e], row);
+    grid->setSaveFloatAsHalf(true);
+    grid->insertMeta(kKeySkyShIndex, vdb::Int32Metadata(column));
+    if (releasable != nullptr) release(&releasable->skyTransfer[e]);
+    archive.WriteGrid(os, grid);
+    PB_RETURN_IF_ERROR(check(name));
+  }
   return absl::OkStatus();
 }
 
@@ -308,7 +328,9 @@ absl::Status WriteProbeVolume(const std::string& path, ProbeVolume&& volume,
   std::vector<float>().swap(volume.autoWindowT);
   absl::Status status = WriteImpl(path, volume, meta, &volume);
   // Whatever happened, the planes are the caller's no more.
-  for (auto* planes : {&volume.radiance, &volume.irradiance, &volume.visibility}) {
+  std::vector<std::vector<float>>().swap(volume.skyTransferStdError);
+  for (auto* planes :
+       {&volume.radiance, &volume.irradiance, &volume.visibility, &volume.skyTransfer}) {
     std::vector<std::vector<float>>().swap(*planes);
   }
   for (auto* values : {&volume.validity, &volume.stdError, &volume.stdErrorL0, &volume.sampleCount,

@@ -48,6 +48,7 @@ std::vector<std::pair<std::string, std::string>> Invariants(const ProbeVolumeFil
       {"has_offset", v.offset.empty() ? "false" : "true"},
       {"has_filled", v.filled.empty() ? "false" : "true"},
       {"visibility_size", std::to_string(v.visibility.size())},
+      {"sky_transfer_order", std::to_string(v.skyTransferOrder)},
       {"sh_window", autoWindow ? "AUTO" : v.window},
       {"grid_placement", std::to_string(int(v.grid.placement))},
       {"grid_surface_distance", Exact(v.grid.surfaceDistance)},
@@ -138,6 +139,8 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
   if (!first.offset.empty()) out.offset.assign(3 * probeCount, 0.0f);
   if (!first.filled.empty()) out.filled.assign(probeCount, 0.0f);
   out.visibility.assign(first.visibility.size(), std::vector<float>(3 * probeCount, 0.0f));
+  out.skyTransferOrder = first.skyTransferOrder;
+  out.skyTransfer.assign(first.skyTransfer.size(), std::vector<float>(3 * probeCount, 0.0f));
 
   const bool autoWindow = first.window.rfind(kAutoPrefix, 0) == 0;
   long long windowed = 0, autoProbes = 0;
@@ -177,6 +180,8 @@ absl::StatusOr<ProbeVolumeFile> MergeProbeVolumes(std::vector<VolumePart> parts)
         if (!out.offset.empty()) put(out.offset[3 * q + ch], v.offset[3 * p + ch]);
         for (size_t t = 0; t < out.visibility.size(); ++t)
           put(out.visibility[t][3 * q + ch], v.visibility[t][3 * p + ch]);
+        for (size_t e = 0; e < out.skyTransfer.size(); ++e)
+          put(out.skyTransfer[e][3 * q + ch], v.skyTransfer[e][3 * p + ch]);
       }
       for (int c = 0; c < coeffs; ++c) {
         for (int ch = 0; ch < 3; ++ch) {

@@ -58,10 +58,22 @@ struct ProbeVolume {
   std::vector<float> stdError;
   std::vector<float> stdErrorL0;
   std::vector<float> sampleCount;  // per probe: sample paths taken
-  std::string window = "NONE";     // as recorded in the file's sh_window metadata
+  // Sky transfer (BakeSettings::skyTransferOrder Ls > 0; docs/volume-format.md), else order 0 and
+  // no planes: CoeffCount() x SkyCoeffCount() planes, plane r * SkyCoeffCount() + s holding per
+  // probe the RGB of T[r][s], the radiance coefficient r that a sky of radiance Y_s (SH
+  // coefficient s = 1, every other 0) adds at the probe. Values are half-precision numbers held as
+  // floats (what the file stores). The radiance planes then hold the local lights only:
+  // radiance_r + sum_s T[r][s] sky_s is the probe's radiance under the sky sky_s.
+  int skyTransferOrder = 0;
+  std::vector<std::vector<float>> skyTransfer;
+  // Optional (BakeOptions::coefficientErrors with sky transfer): the standard error of every T
+  // entry before rounding, same layout. Not written to files; for tests.
+  std::vector<std::vector<float>> skyTransferStdError;
+  std::string window = "NONE";  // as recorded in the file's sh_window metadata
   BakeStats stats;
 
   int CoeffCount() const { return (shOrder + 1) * (shOrder + 1); }
+  int SkyCoeffCount() const { return (skyTransferOrder + 1) * (skyTransferOrder + 1); }
 };
 
 // ProbeVolume::window for the AUTO window: "AUTO(heat exp(-t l(l+1)) per probe; <n> of <m> probes

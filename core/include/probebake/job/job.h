@@ -55,6 +55,12 @@ namespace probebake {
 absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& job, const AssetSource& assets,
                                      const JobLimits& limits);
 
+// The environment `spec` describes, as BuildBakeJob builds a job's (validated the same way, its
+// files read from `assets`): for tools that need a sky without a scene (probebake relight).
+// INVALID_ARGUMENT naming the field ("scene.environment...") for bad specs and files.
+absl::StatusOr<Environment> LoadEnvironment(const v1::Environment& spec, const AssetSource& assets,
+                                            const JobLimits& limits);
+
 // ReadJobFile + BuildBakeJob with LocalAssetSource(JobFileDir(path), "", limits.maxAssetBytes):
 // a local bake's whole input step. Every error line starts with "<path>: ".
 absl::StatusOr<BakeJob> LoadBakeJob(const std::string& path, const JobLimits& limits);

@@ -165,6 +165,9 @@ struct BakeSettings {
   // Fraction of the smallest grid spacing a probe may be moved by (0: no relocation).
   double relocationMaxOffset = 0;
   bool visibility = false;  // gather visibility moments
+  // Ls of the sky transfer (BakeSettings.sky_transfer.order in job.proto); 0: off, the
+  // environment bakes into the radiance like any light.
+  int skyTransferOrder = 0;
 };
 
 // A job ready to bake.

@@ -71,6 +71,8 @@ namespace probebake {
 // The format written (docs/volume-format.md, "Versions and migration notes"), and the older ones
 // ReadProbeVolume still reads (format 3's visibility moments, of distances, are not read).
 inline constexpr int kProbeVolumeFormat = 4;
+// Format 4 also holds the optional sky transfer (sky_transfer_order > 0, its grids and keys).
+inline constexpr int kProbeVolumeFormat4 = 4;
 inline constexpr int kProbeVolumeFormat3 = 3;
 inline constexpr int kProbeVolumeFormat2 = 2;
 inline constexpr int kProbeVolumeFormat1 = 1;
@@ -88,6 +90,10 @@ inline constexpr const char* kOffsetGridName = "offset";
 inline constexpr const char* kFilledGridName = "filled";
 // "visibility_07" for texel 7; texel in [0, 99].
 std::string VisibilityGridName(int texel);
+
+// Format 4: "sky_transfer_07_03" for T[7][3] (radiance coefficient 7 from sky coefficient 3);
+// both in [0, 99].
+std::string SkyTransferGridName(int row, int column);
 
 // "radiance_sh_07" for coefficient 7; coefficient in [0, 99].
 std::string RadianceGridName(int coefficient);
@@ -149,7 +155,9 @@ struct ProbeVolumeFile {
 // ProbeVolume::stdErrorL0, and stdError, which format 1 did not record, is +inf (unknown) at
 // every active probe. Format 2 is format 3 without its optional grids; format 3 is format 4 with
 // moments of distances instead of inverse distances, which are dropped (a volume without
-// visibility). Other formats are refused.
+// visibility), and without a sky transfer. With a sky transfer (sky_transfer_order > 0) its grids
+// are read into ProbeVolume::skyTransfer as stored, i.e. half-precision values. Other formats are
+// refused.
 absl::StatusOr<ProbeVolumeFile> ReadProbeVolume(const std::string& path);
 
 }  // namespace probebake
