@@ -369,6 +369,8 @@ void TracerScene::FillHit(uint32_t geomID, uint32_t primID, float u, float v, co
   hit->kind = info.kind;
   hit->index = info.index;
   hit->prim = primID;
+  hit->u = u;
+  hit->v = v;
   if (info.kind == SurfaceKind::kMesh) {
     const float* verts = meshVerts_[info.index];
     const uint32_t* idx = meshIndices_[info.index] + 3 * primID;

@@ -31,6 +31,9 @@ struct SurfaceHit {
   SurfaceKind kind = SurfaceKind::kMesh;
   uint32_t index = 0;  // mesh index (kMesh) or light index in Scene::lights
   uint32_t prim = 0;   // triangle index within the mesh
+  // Embree's barycentrics of the hit on triangle `prim`, p = (1 - u - v) a + u b + v c (meshes
+  // and rect lights): where a material's textures and vertex colours are read.
+  float u = 0, v = 0;
 };
 
 // The Embree device configuration of every bake. Embree picks its kernels by the CPU's

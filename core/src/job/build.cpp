@@ -126,9 +126,10 @@ class MeshBuilder {
         }
         return referenced;
       };
-      PB_ASSIGN_OR_RETURN(raw, job_internal::ImportMesh(bytes, format, name, fieldPath, triangles_,
-                                                        limits_.maxTriangles, readReference,
-                                                        /*fileMaterials=*/material < 0));
+      PB_ASSIGN_OR_RETURN(
+          raw, job_internal::ImportMesh(bytes, format, name, fieldPath, triangles_,
+                                        limits_.maxTriangles, readReference,
+                                        /*fileMaterials=*/material < 0, limits_.maxTexturePixels));
       // The job digest covers what the import read, whoever supplied it.
       canonical->clear_references();
       for (const auto& [modelPath, referenced] : raw.references)
@@ -196,19 +197,30 @@ class MeshBuilder {
     }
     for (size_t m = 0; m < parts.size(); ++m) {
       if (parts[m].indices.empty()) continue;
-      const job_internal::FileMaterial& fileMaterial = raw.materials[m];
-      parts[m].name = spec.name();
-      parts[m].material = uint32_t(scene->materials.size());
+      Material fileMaterial = raw.materials[m].material;
+      TriangleMesh& part = parts[m];
+      part.name = spec.name();
+      part.material = uint32_t(scene->materials.size());
+      // The per-vertex values the material reads, beside the positions.
+      const auto keep = [](bool used, const auto& all) { return used ? &all : nullptr; };
+      const auto* albedoUv = keep(bool(fileMaterial.albedoMap.image), raw.albedoUv);
+      const auto* emissionUv = keep(bool(fileMaterial.emissionMap.image), raw.emissionUv);
+      const auto* coverageUv = keep(bool(fileMaterial.coverageMap.image), raw.coverageUv);
+      const auto* colors = keep(fileMaterial.vertexColors, raw.colors);
       std::vector<uint32_t> remap(mesh.positions.size(), UINT32_MAX);
-      for (uint32_t& index : parts[m].indices) {
+      for (uint32_t& index : part.indices) {
         if (remap[index] == UINT32_MAX) {
-          remap[index] = uint32_t(parts[m].positions.size());
-          parts[m].positions.push_back(mesh.positions[index]);
+          remap[index] = uint32_t(part.positions.size());
+          part.positions.push_back(mesh.positions[index]);
+          if (albedoUv) part.albedoUv.push_back((*albedoUv)[index]);
+          if (emissionUv) part.emissionUv.push_back((*emissionUv)[index]);
+          if (coverageUv) part.coverageUv.push_back((*coverageUv)[index]);
+          if (colors) part.colors.push_back((*colors)[index]);
         }
         index = remap[index];
       }
-      scene->materials.push_back(
-          {path + ":" + fileMaterial.name, fileMaterial.albedo, fileMaterial.emission});
+      fileMaterial.name = path + ":" + fileMaterial.name;
+      scene->materials.push_back(std::move(fileMaterial));
       scene->meshes.push_back(std::move(parts[m]));
     }
     return absl::OkStatus();

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <exception>
 #include <map>
+#include <memory>
 #include <set>
 #include <utility>
 
@@ -21,6 +22,7 @@
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
 #include "probebake/job/file_refs.h"
+#include "stb_image_decode.h"
 #include "text.h"
 
 namespace probebake::job_internal {
@@ -106,17 +108,154 @@ class ReferenceIOSystem : public Assimp::IOSystem {
   mutable absl::Status firstError_;
 };
 
+// The decoded textures of a model's materials, each image decoded once: embedded in the model
+// (a GLB's buffer views, data: URIs; assimp names them "*<index>") or a referenced file.
+class TextureLoader {
+ public:
+  TextureLoader(const aiScene& scene, const ReferenceIOSystem& references,
+                const std::string& fieldPath, int64_t maxPixels)
+      : scene_(scene), references_(references), fieldPath_(fieldPath), maxPixels_(maxPixels) {}
+
+  // INVALID_ARGUMENT "<fieldPath>: texture '<path>' of material '<material>': <why>" when the
+  // image is missing, too large or cannot be decoded.
+  absl::StatusOr<std::shared_ptr<const Texture>> Load(const std::string& path,
+                                                      const std::string& material) {
+    if (auto it = decoded_.find(path); it != decoded_.end()) return it->second;
+    const auto refuse = [&](const std::string& why) {
+      return FieldError(
+          fieldPath_, "texture " + Quoted(path) + " of material " + Quoted(material) + ": " + why);
+    };
+    auto texture = std::make_shared<Texture>();
+    texture->name = path;
+    const aiTexture* embedded = scene_.GetEmbeddedTexture(path.c_str());
+    if (embedded != nullptr && embedded->mHeight > 0) {  // raw BGRA texels
+      PB_RETURN_IF_ERROR(CheckPixels(embedded->mWidth, embedded->mHeight, refuse));
+      if (embedded->pcData == nullptr) return refuse("the embedded image has no texels");
+      texture->width = int(embedded->mWidth);
+      texture->height = int(embedded->mHeight);
+      const size_t texels = size_t(embedded->mWidth) * embedded->mHeight;
+      texture->rgba.resize(4 * texels);
+      for (size_t k = 0; k < texels; ++k) {
+        const aiTexel& t = embedded->pcData[k];
+        texture->rgba[4 * k] = t.r, texture->rgba[4 * k + 1] = t.g;
+        texture->rgba[4 * k + 2] = t.b, texture->rgba[4 * k + 3] = t.a;
+        texture->hasAlpha = texture->hasAlpha || t.a != 255;
+      }
+    } else {
+      std::string_view bytes;
+      if (embedded != nullptr) {
+        if (embedded->pcData == nullptr) return refuse("the embedded image is empty");
+        bytes = std::string_view(reinterpret_cast<const char*>(embedded->pcData), embedded->mWidth);
+      } else if (path.empty() || path[0] == '*' || path.rfind("data:", 0) == 0) {
+        return refuse("the model names an image it does not hold");
+      } else {
+        const std::string* read = references_.Read(path);
+        if (read == nullptr) {
+          if (!references_.firstError().ok()) return references_.firstError();
+          return refuse("cannot read it");
+        }
+        bytes = *read;
+      }
+      StbImageInfo info;
+      std::string error;
+      if (!StbImageHeader(bytes, &info, &error))
+        return refuse("not a PNG, JPEG, TGA or BMP image (" + error + ")");
+      if (info.radiance) return refuse("a Radiance HDR image; textures are 8-bit images");
+      PB_RETURN_IF_ERROR(CheckPixels(int64_t(info.width), int64_t(info.height), refuse));
+      if (!StbDecodeRgba8(bytes, &texture->rgba, &error))
+        return refuse("cannot decode it: " + error);
+      texture->width = info.width;
+      texture->height = info.height;
+      texture->hasAlpha = info.channels == 2 || info.channels == 4;
+    }
+    std::shared_ptr<const Texture> out = std::move(texture);
+    decoded_.emplace(path, out);
+    return out;
+  }
+
+ private:
+  template <typename Refuse>
+  absl::Status CheckPixels(int64_t width, int64_t height, const Refuse& refuse) const {
+    if (width < 1 || height < 1) return refuse("the image has no pixels");
+    if (maxPixels_ > 0 && width * height > maxPixels_) {
+      return refuse(Num(width) + " x " + Num(height) + " pixels, above the limit of " +
+                    Num(maxPixels_));
+    }
+    return absl::OkStatus();
+  }
+
+  const aiScene& scene_;
+  const ReferenceIOSystem& references_;
+  const std::string& fieldPath_;
+  int64_t maxPixels_;
+  std::map<std::string, std::shared_ptr<const Texture>> decoded_;
+};
+
+TextureWrap WrapOf(aiTextureMapMode mode) {
+  switch (mode) {
+    case aiTextureMapMode_Clamp:
+    case aiTextureMapMode_Decal:
+      return TextureWrap::kClamp;
+    case aiTextureMapMode_Mirror:
+      return TextureWrap::kMirror;
+    default:
+      return TextureWrap::kRepeat;
+  }
+}
+
+// KHR_texture_transform as the affine map of MapPlacement, from the aiUVTransform assimp's glTF 2
+// importer stores: it negates the rotation and folds its flip of v and its rotation about the
+// image centre into the translation; undone here to the extension's offset, rotation and scale,
+// applied as the extension says: uv' = offset + R(rotation) (scale * uv), R = [c -s; s c].
+std::array<double, 6> GltfTextureTransform(const aiUVTransform& t) {
+  const double sx = t.mScaling.x, sy = t.mScaling.y;
+  const double rotation = -double(t.mRotation);
+  const double c = std::cos(rotation), s = std::sin(rotation);
+  const double ox = t.mTranslation.x - 0.5 * sx * (-c + s + 1);
+  const double oy = 0.5 * sy * (s + c - 1) + 1 - sy - t.mTranslation.y;
+  return {c * sx, -s * sy, ox, s * sx, c * sy, oy};
+}
+
+// Reads map 0 of `type` into `map` and `at`; `srgb` for colour maps.
+absl::Status ReadMap(const aiMaterial& material, aiTextureType type, bool srgb, bool gltf,
+                     const std::string& materialName, TextureLoader& loader, TextureMap* map,
+                     MapPlacement* at) {
+  if (material.GetTextureCount(type) == 0) return absl::OkStatus();
+  aiString path;
+  unsigned uvSet = 0;
+  aiTextureMapMode modes[2] = {aiTextureMapMode_Wrap, aiTextureMapMode_Wrap};
+  if (material.GetTexture(type, 0, &path, nullptr, &uvSet, nullptr, nullptr, modes) !=
+      aiReturn_SUCCESS)
+    return absl::OkStatus();
+  PB_ASSIGN_OR_RETURN(map->image, loader.Load(path.C_Str(), materialName));
+  map->wrapX = WrapOf(modes[0]);
+  map->wrapY = WrapOf(modes[1]);
+  map->srgb = srgb;
+  at->uvSet = uvSet < AI_MAX_NUMBER_OF_TEXTURECOORDS ? uvSet : 0;
+  aiUVTransform transform;
+  if (gltf &&
+      material.Get(_AI_MATKEY_UVTRANSFORM_BASE, int(type), 0, transform) == aiReturn_SUCCESS)
+    at->transform = GltfTextureTransform(transform);
+  return absl::OkStatus();
+}
+
 // The diffuse part of an assimp material: glTF metallic-roughness (base colour x (1 - metallic),
-// emissive factor x KHR_materials_emissive_strength), else the classic colours (an OBJ's Kd, Ke).
-// Albedo at or above 1 is clamped just below 1 (energy would grow without bound), with a warning.
-FileMaterial ReduceMaterial(const aiMaterial& material, const std::string& where) {
-  FileMaterial out;
+// emissive factor x KHR_materials_emissive_strength), KHR_materials_pbrSpecularGlossiness's
+// diffuse, else the classic colours (an OBJ's Kd, Ke); with `textures`, the maps and coverage
+// too. Albedo at or above 1 is clamped just below 1 (energy would grow without bound), with a
+// warning; the maps' values are at most 1, so the product stays below 1.
+absl::StatusOr<FileMaterial> ReduceMaterial(const aiMaterial& material, const std::string& format,
+                                            const std::string& where, TextureLoader* textures) {
+  FileMaterial file;
+  Material& out = file.material;
   aiString name;
   if (material.Get(AI_MATKEY_NAME, name) == aiReturn_SUCCESS) out.name = name.C_Str();
   aiColor4D base(1, 1, 1, 1);
   aiColor3D diffuse(1, 1, 1), emissive(0, 0, 0);
-  float metallic = 0, strength = 1;
-  if (material.Get(AI_MATKEY_BASE_COLOR, base) == aiReturn_SUCCESS) {
+  float metallic = 0, strength = 1, glossiness = 0;
+  const bool specularGlossiness =
+      material.Get(AI_MATKEY_GLOSSINESS_FACTOR, glossiness) == aiReturn_SUCCESS;
+  if (!specularGlossiness && material.Get(AI_MATKEY_BASE_COLOR, base) == aiReturn_SUCCESS) {
     if (material.Get(AI_MATKEY_METALLIC_FACTOR, metallic) != aiReturn_SUCCESS) metallic = 0;
     const double dielectric = 1.0 - std::clamp(double(metallic), 0.0, 1.0);
     out.albedo = Vec3d(base.r, base.g, base.b) * dielectric;
@@ -144,7 +283,28 @@ FileMaterial ReduceMaterial(const aiMaterial& material, const std::string& where
   if (clamped)
     Logger("job")->warn("{}: material {} has an albedo of 1 or more; clamped to {}", where,
                         Quoted(out.name), kBelowOne);
-  return out;
+  if (textures == nullptr) return file;
+
+  const bool gltf = format == "gltf" || format == "glb";
+  PB_RETURN_IF_ERROR(ReadMap(material, aiTextureType_DIFFUSE, /*srgb=*/true, gltf, out.name,
+                             *textures, &out.albedoMap, &file.albedoAt));
+  if (MaxComponent(out.emission) > 0) {
+    PB_RETURN_IF_ERROR(ReadMap(material, aiTextureType_EMISSIVE, /*srgb=*/true, gltf, out.name,
+                               *textures, &out.emissionMap, &file.emissionAt));
+  }
+  return file;
+}
+
+// Linear RGBA of an assimp vertex colour: glTF's COLOR_0 is linear; PLY colours are display
+// (sRGB-encoded) values.
+std::array<float, 4> VertexColor(const aiColor4D& c, bool srgb) {
+  const auto linear = [&](double x) {
+    x = std::clamp(std::isfinite(x) ? x : 0.0, 0.0, 1.0);
+    if (!srgb) return float(x);
+    return float(x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4));
+  };
+  return {linear(c.r), linear(c.g), linear(c.b),
+          float(std::clamp(std::isfinite(c.a) ? double(c.a) : 1.0, 0.0, 1.0))};
 }
 
 // Whether an importer that lists `format` among its extensions reads `bytes`. When several
@@ -182,7 +342,8 @@ constexpr double kMaxPolygonWork = 1 << 26;
 absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::string& format,
                                         const std::string& name, const std::string& fieldPath,
                                         int64_t trianglesBefore, int64_t maxTriangles,
-                                        const ReferenceReader& readReference, bool fileMaterials) {
+                                        const ReferenceReader& readReference, bool fileMaterials,
+                                        int64_t maxTexturePixels) {
   const std::string what = Quoted(name);
   // Windows tools write OBJ files with a UTF-8 byte-order mark, which assimp's OBJ reader takes
   // for part of the first line (that vertex lost: "vertex index out of range").
@@ -317,25 +478,73 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
   if (!references->firstError().ok()) return references->firstError();
 
   ImportedMesh out;
-  out.references = references->TakeRead();
+  TextureLoader textures(*scene, *references, fieldPath, maxTexturePixels);
   std::map<unsigned, uint32_t> fileMaterial;  // assimp's material index -> out.materials
   for (const unsigned m : materials) {
     if (m >= scene->mNumMaterials || scene->mMaterials[m] == nullptr) continue;
     fileMaterial.emplace(m, uint32_t(out.materials.size()));
-    out.materials.push_back(ReduceMaterial(*scene->mMaterials[m], fieldPath));
+    PB_ASSIGN_OR_RETURN(FileMaterial reduced,
+                        ReduceMaterial(*scene->mMaterials[m], format, fieldPath,
+                                       fileMaterials ? &textures : nullptr));
+    out.materials.push_back(std::move(reduced));
   }
+  // Vertex colours: glTF's and PLY's (an OBJ's are not part of its material model).
+  const bool colorFormat =
+      fileMaterials && (format == "gltf" || format == "glb" || format == "ply");
+  if (colorFormat) {
+    for (const Instance& instance : instances) {
+      const auto it = fileMaterial.find(instance.mesh->mMaterialIndex);
+      if (instance.mesh->HasVertexColors(0) && it != fileMaterial.end())
+        out.materials[it->second].material.vertexColors = true;
+    }
+  }
+  bool anyAlbedoMap = false, anyEmissionMap = false, anyCoverageMap = false, anyColors = false;
+  for (const FileMaterial& m : out.materials) {
+    anyAlbedoMap = anyAlbedoMap || m.material.albedoMap.image;
+    anyEmissionMap = anyEmissionMap || m.material.emissionMap.image;
+    anyCoverageMap = anyCoverageMap || m.material.coverageMap.image;
+    anyColors = anyColors || m.material.vertexColors;
+  }
+  // The image coordinates of a map at vertex v of `mesh`.
+  const auto imageUv = [](const aiMesh* mesh, unsigned v, const MapPlacement& at) {
+    std::array<float, 2> xy{0, 0};
+    if (mesh->mTextureCoords[at.uvSet] == nullptr) return xy;
+    const aiVector3D& uv = mesh->mTextureCoords[at.uvSet][v];
+    const double x = uv.x, y = 1.0 - double(uv.y);
+    const std::array<double, 6>& m = at.transform;
+    xy[0] = float(m[0] * x + m[1] * y + m[2]);
+    xy[1] = float(m[3] * x + m[4] * y + m[5]);
+    return xy;
+  };
+
   for (const Instance& instance : instances) {
     const aiMesh* mesh = instance.mesh;
     const size_t base = out.positions.size();
     if (base + mesh->mNumVertices > size_t(UINT32_MAX)) {
       return FieldError(fieldPath, what + " has too many vertices");
     }
+    auto material = fileMaterial.find(mesh->mMaterialIndex);
+    if (material == fileMaterial.end()) {  // a material index past the file's materials
+      material = fileMaterial.emplace(mesh->mMaterialIndex, uint32_t(out.materials.size())).first;
+      FileMaterial missing;
+      missing.material = {"(missing)", Vec3d(0.5, 0.5, 0.5), Vec3d()};
+      out.materials.push_back(std::move(missing));
+    }
+    const FileMaterial& used = out.materials[material->second];
     for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
       const Vec3d p = Apply(instance.transform, mesh->mVertices[v]);
       if (!IsFinite(p)) {
         return FieldError(fieldPath, what + " has a non-finite vertex position");
       }
       out.positions.push_back(p);
+      if (anyAlbedoMap) out.albedoUv.push_back(imageUv(mesh, v, used.albedoAt));
+      if (anyEmissionMap) out.emissionUv.push_back(imageUv(mesh, v, used.emissionAt));
+      if (anyCoverageMap) out.coverageUv.push_back(imageUv(mesh, v, used.coverageAt));
+      if (anyColors) {
+        out.colors.push_back(used.material.vertexColors && mesh->HasVertexColors(0)
+                                 ? VertexColor(mesh->mColors[0][v], format == "ply")
+                                 : std::array<float, 4>{1, 1, 1, 1});
+      }
     }
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
       const aiFace& face = mesh->mFaces[f];
@@ -346,14 +555,12 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
         }
         out.indices.push_back(uint32_t(base + face.mIndices[k]));
       }
-      auto material = fileMaterial.find(mesh->mMaterialIndex);
-      if (material == fileMaterial.end()) {  // a material index past the file's materials
-        material = fileMaterial.emplace(mesh->mMaterialIndex, uint32_t(out.materials.size())).first;
-        out.materials.push_back({"(missing)", Vec3d(0.5, 0.5, 0.5), Vec3d()});
-      }
       out.triangleMaterials.push_back(material->second);
     }
   }
+  // Taken last: the textures above may have read references.
+  if (!references->firstError().ok()) return references->firstError();
+  out.references = references->TakeRead();
   if (out.indices.empty()) return FieldError(fieldPath, what + " contains no triangles");
   return out;
 }
