@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <memory>
 
 #include "bake_test_util.h"
@@ -144,6 +145,113 @@ TEST(AuthoredMaterials, AnEmissionMapWeightsTheRadiancePointByPoint) {
   for (size_t c = 0; c < expected.size(); ++c) expected[c] += white[c];
   const ProbeResult r = Probe(BakeOrDie(job), 0);
   ExpectProjection(r, expected, L, "emission map");
+}
+
+// Whether two volumes hold the same bits in every coefficient of every probe.
+::testing::AssertionResult SameBits(const ProbeVolume& a, const ProbeVolume& b) {
+  if (a.CoeffCount() != b.CoeffCount()) return ::testing::AssertionFailure() << "orders differ";
+  for (int c = 0; c < a.CoeffCount(); ++c) {
+    if (a.radiance[c] != b.radiance[c])
+      return ::testing::AssertionFailure() << "coefficient " << c << " differs";
+  }
+  if (a.stdError != b.stdError || a.validity != b.validity)
+    return ::testing::AssertionFailure() << "errors or validity differ";
+  return ::testing::AssertionSuccess();
+}
+
+// A closed grey room (inward faces) lit by a point light and a small rect light, a probe at its
+// centre: the room fixes the scene's bounds (and so the tracer's coordinates) whatever is added
+// inside it.
+BakeJob Room() {
+  BakeJob job = MakeJob(3, 1024, {0, 0, 0});
+  job.settings.batches = 8;
+  const uint32_t grey = AddMaterial(&job.scene, {0.6, 0.5, 0.4});
+  AddBox(&job.scene, {-2, -2, -2}, {2, 2, 2}, grey, /*inward=*/true);
+  job.scene.lights.push_back(PointLight{{0.3, 0.2, 1.5}, {5, 5, 5}});
+  job.scene.lights.push_back(
+      RectLight{{-0.2, -0.2, 1.8}, {0.4, 0, 0}, {0, 0.4, 0}, {8, 8, 8}, true});
+  return job;
+}
+
+// A cutout quad between the probe and the lights, its coverage `alpha` everywhere.
+void AddCutoutQuad(BakeJob* job, double alpha) {
+  const uint32_t m = AddMaterial(&job->scene, {0.7, 0.7, 0.7});
+  job->scene.materials[m].coverage = alpha;
+  job->scene.materials[m].alphaCutoff = 0.5;
+  AddQuad(&job->scene, {-1, -1, 0.8}, {1, -1, 0.8}, {1, 1, 0.8}, {-1, 1, 0.8}, m);
+}
+
+TEST(AuthoredMaterials, AlphaZeroBakesBitIdenticallyToTheSceneWithoutTheQuad) {
+  const BakeJob without = Room();
+  BakeJob with = Room();
+  AddCutoutQuad(&with, 0);
+  EXPECT_TRUE(SameBits(BakeOrDie(without), BakeOrDie(with)));
+  // A coverage map of zeros too (the texture path), and vertex alpha.
+  BakeJob mapped = Room();
+  AddCutoutQuad(&mapped, 1);
+  mapped.scene.materials.back().albedoMap.image = MakeTexture(1, 1, {255, 255, 255, 0});
+  mapped.scene.meshes.back().albedoUv.assign(4, {0.5f, 0.5f});
+  EXPECT_TRUE(SameBits(BakeOrDie(without), BakeOrDie(mapped)));
+}
+
+TEST(AuthoredMaterials, AlphaOneIsOpaque) {
+  // The same quad without a cutout, then with full coverage: the same bits; and it does block.
+  BakeJob opaque = Room();
+  AddCutoutQuad(&opaque, 1);
+  opaque.scene.materials.back().alphaCutoff = 0;
+  BakeJob covered = Room();
+  AddCutoutQuad(&covered, 1);
+  const ProbeVolume a = BakeOrDie(opaque);
+  EXPECT_TRUE(SameBits(a, BakeOrDie(covered)));
+  EXPECT_FALSE(SameBits(a, BakeOrDie(Room())));
+}
+
+TEST(AuthoredMaterials, AHalfCheckerMaskPassesHalfTheLight) {
+  // A small rect light above the probe seen through a mask quad whose alpha is a 2 x 2 checker of
+  // 0 and 255 repeated every 1e-4 units: where bilinear filtering puts the alpha below the 0.5
+  // cutoff is exactly half of each period (f and 1 - f swap under a shift by one texel), and the
+  // light's footprint on the mask spans hundreds of periods, so half of its light passes.
+  const Vec3d L{4, 3, 2};
+  const Vec3d corner{-0.1, -0.1, 1}, e1{0.2, 0, 0}, e2{0, 0.2, 0};
+  BakeJob job = MakeJob(2, 16384);
+  job.scene.lights.push_back(RectLight{corner, e1, e2, L, true});
+  const uint32_t m = AddMaterial(&job.scene, {});
+  job.scene.materials[m].alphaCutoff = 0.5;
+  job.scene.materials[m].albedoMap.image =
+      MakeTexture(2, 2, {0, 0, 0, 0, 0, 0, 0, 255, 0, 0, 0, 255, 0, 0, 0, 0});
+  AddMappedQuad(&job.scene, {-0.5, -0.5, 0.5}, {0.5, -0.5, 0.5}, {0.5, 0.5, 0.5}, {-0.5, 0.5, 0.5},
+                m, 1e4f);
+  const ProbeResult r = Probe(BakeOrDie(job), 0);
+  ExpectProjection(r, ParallelogramProjection(2, {}, corner, e1, e2), L * 0.5, "half mask");
+}
+
+TEST(AuthoredMaterials, ADoubleSidedPlaneBesideAProbeLeavesItValid) {
+  // A large plane 0.1 beside the probe, its back towards it: about half of the validity rays hit
+  // its back, above a backface fraction of 0.25, unless it is double-sided.
+  for (const bool doubleSided : {false, true}) {
+    BakeJob job = MakeJob(1, 64, {0, 0, 0});
+    job.grid.placement = Placement::kOutsideGeometry;
+    job.settings.backfaceFraction = 0.25;
+    job.scene.environment = {Environment::Kind::kUniform, kSky, nullptr};
+    const uint32_t m = AddMaterial(&job.scene, {0.5, 0.5, 0.5});
+    job.scene.materials[m].doubleSided = doubleSided;
+    const double s = 100;  // front +x: away from the probe
+    AddQuad(&job.scene, {0.1, -s, -s}, {0.1, s, -s}, {0.1, s, s}, {0.1, -s, s}, m);
+    const ProbeVolume v = BakeOrDie(job);
+    EXPECT_EQ(v.validity[0], doubleSided ? 1.0f : 0.0f) << doubleSided;
+  }
+}
+
+TEST(AuthoredMaterials, ADoubleSidedEmitterEmitsFromBothSides) {
+  const Vec3d L{4, 3, 2};
+  const Vec3d corner{-0.3, -0.6, 0.8}, e1{1, 0, 0}, e2{0, 1.5, 0};  // e1 x e2 = +z: faces away
+  BakeJob job = MakeJob(3, 8192);
+  const uint32_t m = AddMaterial(&job.scene, {}, L);
+  AddQuad(&job.scene, corner, corner + e1, corner + e1 + e2, corner + e2, m);
+  for (const Vec3d& c : Probe(BakeOrDie(job), 0).radiance) EXPECT_EQ(MaxComponent(Abs(c)), 0.0);
+  job.scene.materials[m].doubleSided = true;
+  ExpectProjection(Probe(BakeOrDie(job), 0), ParallelogramProjection(3, {}, corner, e1, e2), L,
+                   "double-sided emitter");
 }
 
 TEST(AuthoredMaterials, TextureSamplingWrapsAndDecodes) {

@@ -261,6 +261,68 @@ f 1/1 2/2 3/3 4/4
   EXPECT_EQ(AlbedoAtVertex(*job, VertexAt(*job, 1, 1)), Vec3d(0, 0.5, 0));  // top-right: green
 }
 
+TEST(AuthoredMaterials, CutoutsAndDoubleSidedMaterials) {
+  TempDir dir;
+  dir.Write("quadrants.png", Quadrants());
+  const std::vector<float> uv(8, 0.5f);
+  const auto material = [&](const std::string& json) -> Material {
+    dir.Write("m.gltf", GltfQuad(uv, {}, json, R"([{"uri": "quadrants.png"}])"));
+    const absl::StatusOr<BakeJob> job = BuildFileJob(dir, "m.gltf");
+    EXPECT_TRUE(job.ok()) << job.status();
+    return job.ok() ? job->scene.materials.at(0) : Material{};
+  };
+  const Material mask = material(
+      R"({"alphaMode": "MASK", "alphaCutoff": 0.3, "doubleSided": true,
+          "pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0.25]}})");
+  EXPECT_FLOAT_EQ(float(mask.alphaCutoff), 0.3f);
+  EXPECT_EQ(mask.coverage, 0.25);
+  EXPECT_TRUE(mask.doubleSided);
+  const Material blend = material(R"({"alphaMode": "BLEND"})");
+  EXPECT_EQ(blend.alphaCutoff, 0.5);
+  EXPECT_FALSE(blend.doubleSided);
+  const Material opaque =
+      material(R"({"pbrMetallicRoughness": {"baseColorFactor": [1, 1, 1, 0]}})");
+  EXPECT_FALSE(opaque.HasCutout());
+
+  // OBJ: d below 1 or a map_d cut out at 0.5; map_d reads alpha, or red without alpha.
+  std::string grey;  // 2 x 1, one grey channel: 0 then 255
+  const uint8_t texels[2] = {0, 255};
+  stbi_write_png_to_func(
+      [](void* context, void* data, int size) {
+        static_cast<std::string*>(context)->append(static_cast<const char*>(data), size_t(size));
+      },
+      &grey, 2, 1, 1, texels, 2);
+  dir.Write("grey.png", grey);
+  dir.Write("m.mtl", "newmtl a\nKd 0.5 0.5 0.5\nd 0.4\nnewmtl b\nKd 0.5 0.5 0.5\nmap_d grey.png\n");
+  dir.Write("m.obj", R"(mtllib m.mtl
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+vt 0.25 0.5
+vt 0.75 0.5
+vt 0.75 0.5
+usemtl a
+f 1/1 2/2 3/3
+usemtl b
+f 1/1 3/3 4/2
+)");
+  const absl::StatusOr<BakeJob> job = BuildFileJob(dir, "m.obj");
+  ASSERT_TRUE(job.ok()) << job.status();
+  ASSERT_EQ(job->scene.materials.size(), 2u);
+  const Material& a = job->scene.materials[0];
+  const Material& b = job->scene.materials[1];
+  EXPECT_EQ(a.alphaCutoff, 0.5);
+  EXPECT_FLOAT_EQ(float(a.coverage), 0.4f);
+  EXPECT_EQ(b.alphaCutoff, 0.5);
+  ASSERT_TRUE(b.coverageMap.image);
+  EXPECT_FALSE(b.coverageMap.srgb);
+  // Without alpha, the grey value: 0 at the first texel's centre, 1 at the second's.
+  const TriangleMesh& mb = job->scene.meshes[1];
+  EXPECT_EQ(CoverageAt(b, mb, 0, 0, 0), 0.0);
+  EXPECT_EQ(CoverageAt(b, mb, 0, 1, 0), 1.0);
+}
+
 TEST(AuthoredMaterials, BadTexturesAreRefusedNamingTheFieldTheMaterialAndThePath) {
   TempDir dir;
   const std::string material =

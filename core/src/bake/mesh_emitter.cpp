@@ -37,7 +37,8 @@ MeshEmitter::MeshEmitter(const TriangleMesh& mesh, const TracerScene& tracer, ui
       // whatever it is, only its variance depends on it.
       power_(Luminance(material.emission) *
              (material.emissionMap.image ? MeanLuminance(material.emissionMap) : 1.0)),
-      material_(material.emissionMap.image ? &material : nullptr),
+      material_(material.emissionMap.image || material.HasCutout() ? &material : nullptr),
+      doubleSided_(material.doubleSided),
       triangles_(triangleAreas) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const Vec3d& offset = tracer.offset();
@@ -70,8 +71,12 @@ bool MeshEmitter::Sample(const Vec3d& p, const Vec3d* /*n*/, const Vec2d& u, Lig
   const double d = std::sqrt(d2);
   s->wi = v * (1 / d);
   const Vec3d ng = Vec3d(tracer_->TriangleNormal(index_, uint32_t(t)));
-  const double cosLight = -Dot(s->wi, ng);
+  double cosLight = -Dot(s->wi, ng);
+  if (doubleSided_) cosLight = std::fabs(cosLight);
   if (cosLight <= 0) return false;  // emissive triangles emit from their front side only
+  if (material_ && material_->HasCutout() &&
+      CoverageAt(*material_, *mesh_, uint32_t(t), bary[1], bary[2]) < material_->alphaCutoff)
+    return false;  // a cut-out point emits nothing
   s->distance = d;
   s->point = q;
   s->vertexScale = vertexScale_;
@@ -84,9 +89,12 @@ bool MeshEmitter::Sample(const Vec3d& p, const Vec3d* /*n*/, const Vec2d& u, Lig
 
 bool MeshEmitter::EvalHit(const Vec3d& /*p*/, const Vec3d& wi, const SurfaceHit& hit, double pmf,
                           LightHit* out) const {
-  const double cosLight = -Dot(wi, hit.ng);
+  double cosLight = -Dot(wi, hit.ng);
+  if (doubleSided_) cosLight = std::fabs(cosLight);
   if (cosLight <= 0) return false;
-  out->radiance = material_ ? EmissionAt(*material_, *mesh_, hit.prim, hit.u, hit.v) : radiance_;
+  out->radiance = material_ && material_->emissionMap.image
+                      ? EmissionAt(*material_, *mesh_, hit.prim, hit.u, hit.v)
+                      : radiance_;
   out->pdf = pmf * (hit.t * hit.t) / (area_ * cosLight);
   return true;
 }

@@ -1,6 +1,7 @@
 // An emissive mesh as one light (emitter.h's contract, family kSurface): every triangle of a mesh
 // whose material emits, emitting from its front side (counter-clockwise) with the material's
-// radiance (times its emission map at the point, if any). Sampled by picking a triangle in
+// radiance (times its emission map at the point, if any; from both sides when double-sided;
+// nothing where a cutout removes it). Sampled by picking a triangle in
 // proportion to its area, then a point uniform on it: the area pdf is 1 / (the mesh's area).
 // Importance: luminance x area / d^2 to the centre of its bounds (d^2 floored at the area), 0 where
 // its bounds lie wholly below p's tangent plane.
@@ -60,7 +61,9 @@ class MeshEmitter {
   uint32_t index_;  // in Scene::meshes
   Vec3d radiance_;  // the material's constant emission
   double power_;
-  const Material* material_;  // set when an emission map varies the radiance over the surface
+  // Set when the radiance varies over the surface: an emission map, or a cutout.
+  const Material* material_;
+  bool doubleSided_;  // emits from both sides
   double area_ = 0;
   Vec3d lo_, hi_;  // bounds (local)
   Vec3d centre_;   // of the bounds

@@ -1,6 +1,7 @@
 #include "mesh_import.h"
 
 #include <assimp/BaseImporter.h>
+#include <assimp/GltfMaterial.h>
 #include <assimp/MemoryIOWrapper.h>
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
@@ -285,7 +286,35 @@ absl::StatusOr<FileMaterial> ReduceMaterial(const aiMaterial& material, const st
                         Quoted(out.name), kBelowOne);
   if (textures == nullptr) return file;
 
+  // Coverage: glTF's alphaMode MASK cuts out below alphaCutoff and BLEND below 0.5 (no partial
+  // transparency), OPAQUE ignores alpha; an OBJ's d below 1 or a map_d cuts out below 0.5.
   const bool gltf = format == "gltf" || format == "glb";
+  float opacity = 1;
+  if (material.Get(AI_MATKEY_OPACITY, opacity) == aiReturn_SUCCESS)
+    out.coverage = std::isfinite(opacity) ? std::clamp(double(opacity), 0.0, 1.0) : 1.0;
+  if (gltf) {
+    aiString mode;
+    float cutoff = 0.5f;
+    if (material.Get(AI_MATKEY_GLTF_ALPHAMODE, mode) == aiReturn_SUCCESS) {
+      if (std::string_view(mode.C_Str()) == "MASK") {
+        if (material.Get(AI_MATKEY_GLTF_ALPHACUTOFF, cutoff) != aiReturn_SUCCESS) cutoff = 0.5f;
+        out.alphaCutoff = std::isfinite(cutoff) ? std::clamp(double(cutoff), 0.0, 1.0) : 0.5;
+      } else if (std::string_view(mode.C_Str()) == "BLEND") {
+        out.alphaCutoff = 0.5;
+      }
+    }
+    int twoSided = 0;
+    if (material.Get(AI_MATKEY_TWOSIDED, twoSided) == aiReturn_SUCCESS) out.doubleSided = twoSided;
+  } else if (format == "obj") {
+    PB_RETURN_IF_ERROR(ReadMap(material, aiTextureType_OPACITY, /*srgb=*/false, false, out.name,
+                               *textures, &out.coverageMap, &file.coverageAt));
+    if (out.coverage < 1 || out.coverageMap.image) out.alphaCutoff = 0.5;
+    if (out.coverage == 0) {
+      Logger("job")->warn("{}: material {} has d 0 (wholly transparent): its triangles are cut out",
+                          where, Quoted(out.name));
+    }
+  }
+
   PB_RETURN_IF_ERROR(ReadMap(material, aiTextureType_DIFFUSE, /*srgb=*/true, gltf, out.name,
                              *textures, &out.albedoMap, &file.albedoAt));
   if (MaxComponent(out.emission) > 0) {
