@@ -6,11 +6,14 @@
 
 #include <cmath>
 #include <cstring>
+#include <variant>
 #include <vector>
 
 #include "absl/strings/escaping.h"
 #include "core/src/bake/surface_material.h"
 #include "job/test_util.h"
+#include "probebake/bake/bake.h"
+#include "probebake/base/status.h"
 #include "probebake/job/job.h"
 #include "probebake/job/job_json.h"
 
@@ -321,6 +324,120 @@ f 1/1 3/3 4/2
   const TriangleMesh& mb = job->scene.meshes[1];
   EXPECT_EQ(CoverageAt(b, mb, 0, 0, 0), 0.0);
   EXPECT_EQ(CoverageAt(b, mb, 0, 1, 0), 1.0);
+}
+
+// A glTF with one quad far below (a file needs triangles) and one KHR_lights_punctual light
+// `light` (JSON) on a node `node` (JSON fields), or none.
+std::string GltfWithLight(const std::string& light, const std::string& node) {
+  std::string bin;
+  Append<float>(&bin, {-1, -1, -5, 1, -1, -5, 1, 1, -5, -1, 1, -5});
+  Append<uint16_t>(&bin, {0, 1, 2, 0, 2, 3});
+  const bool lit = !light.empty();
+  return R"({"asset": {"version": "2.0"}, "scene": 0,
+    "scenes": [{"nodes": )" +
+         std::string(lit ? "[0, 1]" : "[0]") + R"(}],
+    )" +
+         (lit ? R"("extensionsUsed": ["KHR_lights_punctual"],
+    "extensions": {"KHR_lights_punctual": {"lights": [)" +
+                    light + R"(]}},)"
+              : std::string()) +
+         R"(
+    "nodes": [{"mesh": 0}, {"name": "lamp", )" +
+         node +
+         R"(, "extensions": {"KHR_lights_punctual": {"light": 0}}}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1,
+                                "material": 0}]}],
+    "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [0.5, 0.5, 0.5, 1],
+                   "metallicFactor": 0}}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                   "min": [-1, -1, -5], "max": [1, 1, -5]},
+                  {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                    {"buffer": 0, "byteOffset": 48, "byteLength": 12}],
+    "buffers": [{"byteLength": 60, "uri": "data:application/octet-stream;base64,)" +
+         absl::Base64Escape(bin) + R"("}]})";
+}
+
+// Bakes `file` with the file's materials and `lights` (JSON) as the job's lights; one probe at the
+// origin.
+absl::StatusOr<ProbeVolume> BakeWithLights(const TempDir& dir, const std::string& file,
+                                           const std::string& lights) {
+  const std::string json = R"({"scene": {"meshes": [{"file": ")" + file + R"("}], "lights": [)" +
+                           lights + R"(]}, "grid": {"min": [0, 0, 0], "max": [0, 0, 0],
+                           "counts": [1, 1, 1], "placement": "ALL"},
+                           "settings": {"samplesPerProbe": 256, "shOrder": 2}})";
+  const absl::StatusOr<v1::JobSpec> spec = ParseJobJson(json);
+  if (!spec.ok()) return spec.status();
+  PB_ASSIGN_OR_RETURN(const BakeJob job,
+                      BuildBakeJob(*spec, LocalAssetSource(dir.path()), JobLimits{}));
+  return Bake(job, BakeOptions{});
+}
+
+TEST(AuthoredMaterials, KhrLightsEqualTheJobsLightsAt683LumensPerWatt) {
+  // Each light of the file, placed by its node, bakes the same bits as the job's light with
+  // intensity (or irradiance) = the file's candela (or lux) / 683 on the same quad.
+  struct Case {
+    std::string what, gltfLight, node, jobLight;
+  };
+  const std::vector<Case> cases = {
+      {"point", R"({"type": "point", "color": [1, 0.5, 0.25], "intensity": 1366})",
+       R"("translation": [0.5, 0.25, 2])",
+       R"({"point": {"position": [0.5, 0.25, 2], "intensity": [2, 1, 0.5]}})"},
+      {"spot",
+       R"({"type": "spot", "color": [1, 1, 0.5], "intensity": 683,
+           "spot": {"innerConeAngle": 0.25, "outerConeAngle": 0.75}})",
+       R"("translation": [0.25, 0, 1.5])",
+       R"({"spot": {"position": [0.25, 0, 1.5], "direction": [0, 0, -1], "intensity": [1, 1, 0.5],
+           "innerAngleDeg": 14.32394487827058, "outerAngleDeg": 42.97183463481174}})"},
+      {"directional", R"({"type": "directional", "color": [0.5, 1, 1], "intensity": 2049})",
+       R"("translation": [3, 3, 3])",
+       R"({"directional": {"direction": [0, 0, -1], "irradiance": [1.5, 3, 3]}})"},
+  };
+  for (const Case& c : cases) {
+    TempDir dir;
+    dir.Write("lit.gltf", GltfWithLight(c.gltfLight, c.node));
+    dir.Write("dark.gltf", GltfWithLight("", R"("translation": [0, 0, 0])"));
+    const absl::StatusOr<ProbeVolume> file = BakeWithLights(dir, "lit.gltf", "");
+    const absl::StatusOr<ProbeVolume> job = BakeWithLights(dir, "dark.gltf", c.jobLight);
+    ASSERT_TRUE(file.ok()) << c.what << ": " << file.status();
+    ASSERT_TRUE(job.ok()) << c.what << ": " << job.status();
+    EXPECT_GT(std::abs(file->radiance[0][0]), 0) << c.what;
+    for (int k = 0; k < file->CoeffCount(); ++k) {
+      for (int ch = 0; ch < 3; ++ch) {
+        // The spot's cone angles pass through degrees: a few ulps.
+        EXPECT_NEAR(file->radiance[k][ch], job->radiance[k][ch],
+                    c.what == "spot" ? 1e-5 * std::abs(job->radiance[0][ch]) : 0.0)
+            << c.what << " coefficient " << k << " channel " << ch;
+      }
+    }
+  }
+}
+
+TEST(AuthoredMaterials, KhrLightsFollowTheirNodesAndTheMeshTransform) {
+  TempDir dir;
+  // A spot under a node rotated a quarter turn about x (-z to +y), translated; the mesh moved
+  // by +10 along x.
+  dir.Write("lit.gltf",
+            GltfWithLight(R"({"type": "spot", "intensity": 683, "spot": {"outerConeAngle": 0.5}})",
+                          R"("translation": [1, 2, 3], "rotation": [0.7071067811865476, 0, 0,
+                              0.7071067811865476])"));
+  const absl::StatusOr<v1::JobSpec> spec = ParseJobJson(
+      R"({"scene": {"meshes": [{"file": "lit.gltf", "transform": [1,0,0,10, 0,1,0,0, 0,0,1,0,
+      0,0,0,1]}]}, "grid": {"min": [0, 0, 0], "max": [0, 0, 0], "counts": [1, 1, 1]}})");
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  const absl::StatusOr<BakeJob> job =
+      BuildBakeJob(*spec, LocalAssetSource(dir.path()), JobLimits{});
+  ASSERT_TRUE(job.ok()) << job.status();
+  ASSERT_EQ(job->scene.lights.size(), 1u);
+  const auto* spot = std::get_if<SpotLight>(&job->scene.lights[0]);
+  ASSERT_NE(spot, nullptr);
+  EXPECT_NEAR(spot->position.x, 11, 1e-12);
+  EXPECT_NEAR(spot->position.y, 2, 1e-12);
+  EXPECT_NEAR(spot->position.z, 3, 1e-12);
+  EXPECT_NEAR(spot->direction.y, 1, 1e-6);
+  EXPECT_NEAR(spot->cosOuter, std::cos(0.5), 1e-7);
+  EXPECT_EQ(spot->cosInner, 1.0);  // innerConeAngle defaults to 0
+  EXPECT_EQ(spot->intensity, Vec3d(1, 1, 1));
 }
 
 TEST(AuthoredMaterials, BadTexturesAreRefusedNamingTheFieldTheMaterialAndThePath) {

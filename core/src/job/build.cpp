@@ -88,11 +88,40 @@ std::string AssetName(const std::string& file, const v1::Digest& blob) {
   return file.empty() ? "blob " + blob.hash() : file;
 }
 
+// Moves a file's light by a mesh's row-major 4x4 `transform` (last row 0 0 0 1): positions as
+// points, directions as vectors (renormalized); intensities are unchanged.
+template <typename Transform>
+absl::Status TransformLight(const Transform& t, const std::string& path, Light* light) {
+  const auto point = [&](const Vec3d& p) {
+    return Vec3d{t[0] * p.x + t[1] * p.y + t[2] * p.z + t[3],
+                 t[4] * p.x + t[5] * p.y + t[6] * p.z + t[7],
+                 t[8] * p.x + t[9] * p.y + t[10] * p.z + t[11]};
+  };
+  const auto vector = [&](const Vec3d& d) {
+    return Normalize(Vec3d{t[0] * d.x + t[1] * d.y + t[2] * d.z,
+                           t[4] * d.x + t[5] * d.y + t[6] * d.z,
+                           t[8] * d.x + t[9] * d.y + t[10] * d.z});
+  };
+  if (auto* p = std::get_if<PointLight>(light)) {
+    p->position = point(p->position);
+    if (!IsFinite(p->position)) return FieldError(path + ".transform", "moves a light to infinity");
+  } else if (auto* s = std::get_if<SpotLight>(light)) {
+    s->position = point(s->position);
+    s->direction = vector(s->direction);
+    if (!IsFinite(s->position) || !IsFinite(s->direction))
+      return FieldError(path + ".transform", "moves a light to infinity");
+  } else if (auto* d = std::get_if<DirectionalLight>(light)) {
+    d->direction = vector(d->direction);
+  }
+  return absl::OkStatus();
+}
+
 // Builds the world-space mesh of job mesh `i` and makes its reference canonical.
 class MeshBuilder {
  public:
-  MeshBuilder(const AssetSource& assets, const JobLimits& limits)
-      : assets_(assets), limits_(limits) {}
+  // `jobLights`: the job's own lights, added after the meshes'.
+  MeshBuilder(const AssetSource& assets, const JobLimits& limits, int64_t jobLights)
+      : assets_(assets), limits_(limits), jobLights_(jobLights) {}
 
   // `material`: the index of the job's material for the mesh; -1 uses the file's own materials.
   absl::Status Add(const v1::Mesh& spec, const std::string& path, int64_t material,
@@ -187,6 +216,22 @@ class MeshBuilder {
       scene->meshes.push_back(std::move(mesh));
       return absl::OkStatus();
     }
+    // The file's lights, moved by the mesh's transform like its vertices.
+    if (!raw.lights.empty()) {
+      // With the job's own lights (counted against the limit by validation).
+      if (limits_.maxLights > 0 && int64_t(scene->lights.size() + raw.lights.size()) + jobLights_ >
+                                       int64_t(limits_.maxLights)) {
+        return FieldError(path, "the file's " + Num(raw.lights.size()) +
+                                    " lights bring the scene's lights above the limit of " +
+                                    Num(limits_.maxLights));
+      }
+      for (Light& light : raw.lights) {
+        if (spec.transform_size() == 16) {
+          PB_RETURN_IF_ERROR(TransformLight(spec.transform(), path, &light));
+        }
+        scene->lights.push_back(light);
+      }
+    }
     // The file's own materials: one scene mesh per material its triangles use, holding the
     // vertices its triangles index, in the file's material order.
     std::vector<TriangleMesh> parts(raw.materials.size());
@@ -229,6 +274,7 @@ class MeshBuilder {
  private:
   const AssetSource& assets_;
   const JobLimits& limits_;
+  int64_t jobLights_;
   int64_t triangles_ = 0;
 };
 
@@ -490,7 +536,7 @@ absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource&
     out.materials.push_back({m.name(), ToVec3(m.albedo()), ToVec3(m.emission())});
   }
 
-  MeshBuilder meshes(assets, limits);
+  MeshBuilder meshes(assets, limits, scene.lights_size());
   for (int i = 0; i < scene.meshes_size(); ++i) {
     const v1::Mesh& m = scene.meshes(i);
     const int64_t material = m.material().empty() ? -1 : int64_t(materialIndex.at(m.material()));

@@ -23,6 +23,7 @@
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
 #include "probebake/job/file_refs.h"
+#include "probebake/job/limits.h"
 #include "stb_image_decode.h"
 #include "text.h"
 
@@ -336,6 +337,83 @@ std::array<float, 4> VertexColor(const aiColor4D& c, bool srgb) {
           float(std::clamp(std::isfinite(c.a) ? double(c.a) : 1.0, 0.0, 1.0))};
 }
 
+// The linear part of `m` applied to the vector d.
+Vec3d ApplyLinear(const Affine& m, const aiVector3D& d) {
+  const double x = d.x, y = d.y, z = d.z;
+  return {m[0] * x + m[1] * y + m[2] * z, m[4] * x + m[5] * y + m[6] * z,
+          m[8] * x + m[9] * y + m[10] * z};
+}
+
+// The file's punctual lights (glTF KHR_lights_punctual, as assimp reports them: colour x
+// intensity in candela or lux, position and direction in the node's space, cone half-angles in
+// radians), each placed by the node of its name; a light no node places is ignored with a warning,
+// as are other kinds of lights and other formats' lights.
+absl::StatusOr<std::vector<Light>> FileLights(const aiScene& scene,
+                                              const std::map<std::string, Affine>& nodes,
+                                              const std::string& format,
+                                              const std::string& fieldPath) {
+  std::vector<Light> out;
+  if (scene.mNumLights == 0 || scene.mLights == nullptr) return out;
+  if (format != "gltf" && format != "glb") {
+    Logger("job")->info("{}: the file's {} light(s) are ignored (lights are read from glTF only)",
+                        fieldPath, scene.mNumLights);
+    return out;
+  }
+  for (unsigned i = 0; i < scene.mNumLights; ++i) {
+    const aiLight* light = scene.mLights[i];
+    if (light == nullptr) continue;
+    const std::string name = light->mName.C_Str();
+    const auto node = nodes.find(name);
+    if (node == nodes.end()) {
+      Logger("job")->warn("{}: light {} is placed by no node of the scene: ignored", fieldPath,
+                          Quoted(name));
+      continue;
+    }
+    const Affine& m = node->second;
+    Vec3d power(light->mColorDiffuse.r, light->mColorDiffuse.g, light->mColorDiffuse.b);
+    for (double* c : {&power.x, &power.y, &power.z}) {
+      if (!(*c >= 0) || !std::isfinite(*c)) *c = 0;
+      *c /= kLumensPerWatt;
+      if (*c > kMaxEmitted) {
+        return FieldError(fieldPath, "light " + Quoted(name) + " emits more than " +
+                                         Num(kMaxEmitted * kLumensPerWatt) + " cd or lux");
+      }
+    }
+    const Vec3d position = Apply(m, light->mPosition);
+    Vec3d direction = ApplyLinear(m, light->mDirection);
+    const double length = Length(direction);
+    const bool directed =
+        light->mType == aiLightSource_SPOT || light->mType == aiLightSource_DIRECTIONAL;
+    if (directed && !(length > 0 && std::isfinite(length))) {
+      return FieldError(fieldPath, "light " + Quoted(name) +
+                                       ": its node's transform leaves it no "
+                                       "direction");
+    }
+    if (!IsFinite(position))
+      return FieldError(fieldPath, "light " + Quoted(name) + " has a non-finite position");
+    if (directed) direction = direction / length;
+    switch (light->mType) {
+      case aiLightSource_POINT:
+        out.push_back(PointLight{position, power});
+        break;
+      case aiLightSource_SPOT: {
+        const double outer = std::clamp(double(light->mAngleOuterCone), 0.0, std::acos(-1.0) / 2);
+        const double inner = std::clamp(double(light->mAngleInnerCone), 0.0, outer);
+        out.push_back(SpotLight{position, direction, power, std::cos(inner), std::cos(outer)});
+        break;
+      }
+      case aiLightSource_DIRECTIONAL:
+        out.push_back(DirectionalLight{direction, power, 1});
+        break;
+      default:
+        Logger("job")->warn("{}: light {} is of a kind glTF does not define: ignored", fieldPath,
+                            Quoted(name));
+        break;
+    }
+  }
+  return out;
+}
+
 // Whether an importer that lists `format` among its extensions reads `bytes`. When several
 // importers list an extension (glTF 1 and 2 both list gltf and glb), assimp asks them; when none
 // accepts, it tries every importer it has by signature (an STL file sent as gltf was read as
@@ -459,6 +537,7 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
     Affine transform;
   };
   std::vector<Instance> instances;
+  std::map<std::string, Affine> nodeTransforms;  // by node name, the first node of a name
   int64_t triangles = trianglesBefore;
   if (scene->mRootNode != nullptr) {
     std::vector<std::pair<const aiNode*, Affine>> stack{
@@ -466,6 +545,7 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
     while (!stack.empty()) {
       const auto [node, transform] = stack.back();
       stack.pop_back();
+      nodeTransforms.emplace(node->mName.C_Str(), transform);
       for (unsigned i = 0; i < node->mNumMeshes; ++i) {
         if (node->mMeshes[i] >= scene->mNumMeshes) continue;
         const aiMesh* mesh = scene->mMeshes[node->mMeshes[i]];
@@ -586,6 +666,9 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
       }
       out.triangleMaterials.push_back(material->second);
     }
+  }
+  if (fileMaterials) {
+    PB_ASSIGN_OR_RETURN(out.lights, FileLights(*scene, nodeTransforms, format, fieldPath));
   }
   // Taken last: the textures above may have read references.
   if (!references->firstError().ok()) return references->firstError();

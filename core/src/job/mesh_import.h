@@ -30,6 +30,11 @@ struct FileMaterial {
   MapPlacement albedoAt, emissionAt, coverageAt;
 };
 
+// A file's photometric lights in the job's radiometric units: glTF's candela (point, spot) and
+// lux (directional) divided by 683 lm/W, so that a 683 cd point light is a job point light of
+// intensity 1 and 683 lux a directional irradiance of 1.
+inline constexpr double kLumensPerWatt = 683;
+
 // Triangles of a mesh file in the file's world space (node transforms applied, in double).
 struct ImportedMesh {
   std::vector<Vec3d> positions;
@@ -41,6 +46,9 @@ struct ImportedMesh {
   // none).
   std::vector<std::array<float, 2>> albedoUv, emissionUv, coverageUv;
   std::vector<std::array<float, 4>> colors;
+  // With the file's materials: its lights (glTF KHR_lights_punctual), placed by their nodes, in
+  // the job's units (photometric values / kLumensPerWatt).
+  std::vector<Light> lights;
   // Every file the model referenced and the import read, by its normalized path
   // (NormalizeModelPath) to its bytes: a glTF's external buffers and images, an OBJ's .mtl and
   // texture maps.
