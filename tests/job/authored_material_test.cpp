@@ -440,6 +440,32 @@ TEST(AuthoredMaterials, KhrLightsFollowTheirNodesAndTheMeshTransform) {
   EXPECT_EQ(spot->intensity, Vec3d(1, 1, 1));
 }
 
+TEST(AuthoredMaterials, ExtensionsThatDoNotChangeDiffuseTransportAreListed) {
+  TempDir dir;
+  std::string gltf = GltfQuad(std::vector<float>(8, 0.5f), {}, R"({"name": "m"})", "[]", "[]");
+  // No textures: drop the texture table the helper writes.
+  gltf.replace(gltf.find(R"("textures": [{"source": 0, "sampler": 0}],)"),
+               std::string(R"("textures": [{"source": 0, "sampler": 0}],)").size(), "");
+  gltf.replace(gltf.find(R"("extensionsUsed": ["KHR_texture_transform"])"),
+               std::string(R"("extensionsUsed": ["KHR_texture_transform"])").size(),
+               R"("extensionsUsed": ["KHR_texture_transform", "KHR_materials_sheen",
+                   "KHR_materials_clearcoat", "KHR_materials_ior"])");
+  dir.Write("m.gltf", gltf);
+  const absl::StatusOr<BakeJob> job = BuildFileJob(dir, "m.gltf");
+  ASSERT_TRUE(job.ok()) << job.status();
+  const std::vector<std::string> expected = {"scene.meshes[0]: KHR_materials_clearcoat",
+                                             "scene.meshes[0]: KHR_materials_ior",
+                                             "scene.meshes[0]: KHR_materials_sheen"};
+  EXPECT_EQ(job->ignored, expected);
+  // Nothing to list in a file without extensions.
+  dir.Write("q.gltf",
+            GltfQuad(std::vector<float>(8, 0.5f), {}, R"({"name": "m"})", R"([{"uri": "q.png"}])"));
+  dir.Write("q.png", Quadrants());
+  const absl::StatusOr<BakeJob> plain = BuildFileJob(dir, "q.gltf");
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  EXPECT_TRUE(plain->ignored.empty());
+}
+
 TEST(AuthoredMaterials, BadTexturesAreRefusedNamingTheFieldTheMaterialAndThePath) {
   TempDir dir;
   const std::string material =

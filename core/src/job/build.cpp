@@ -164,6 +164,8 @@ class MeshBuilder {
       for (const auto& [modelPath, referenced] : raw.references)
         (*canonical->mutable_references())[modelPath] = DigestOf(referenced);
       raw.references.clear();
+      for (const std::string& extension : raw.ignoredExtensions)
+        ignored_.push_back(path + ": " + extension);
     } else {
       raw.positions.reserve(size_t(spec.positions_size() / 3));
       for (int k = 0; k + 2 < spec.positions_size(); k += 3)
@@ -275,6 +277,12 @@ class MeshBuilder {
   const AssetSource& assets_;
   const JobLimits& limits_;
   int64_t jobLights_;
+  std::vector<std::string> ignored_;
+
+ public:
+  const std::vector<std::string>& ignored() const { return ignored_; }
+
+ private:
   int64_t triangles_ = 0;
 };
 
@@ -543,6 +551,7 @@ absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource&
     PB_RETURN_IF_ERROR(
         meshes.Add(m, Index("scene.meshes", i), material, canonical.mutable_meshes(i), &out));
   }
+  job.ignored = meshes.ignored();
   for (const v1::Light& l : scene.lights()) out.lights.push_back(BuildLight(l));
   PB_RETURN_IF_ERROR(CheckSceneSpan(out));
   PB_RETURN_IF_ERROR(BuildEnvironment(scene.environment(), assets, limits,

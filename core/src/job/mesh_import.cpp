@@ -6,12 +6,15 @@
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <google/protobuf/struct.pb.h>
+#include <google/protobuf/util/json_util.h>
 #include <assimp/IOSystem.hpp>
 #include <assimp/Importer.hpp>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <exception>
 #include <map>
 #include <memory>
@@ -414,6 +417,44 @@ absl::StatusOr<std::vector<Light>> FileLights(const aiScene& scene,
   return out;
 }
 
+// The JSON of a glTF file: all of a .gltf, a GLB's first chunk (its sizes were checked by
+// MeshFileProblem).
+std::string_view GltfJsonOf(std::string_view bytes, const std::string& format) {
+  if (format == "gltf") return bytes;
+  if (bytes.size() < 20) return {};
+  uint32_t length = 0;
+  std::memcpy(&length, bytes.data() + 12, 4);
+  return bytes.substr(20, length);
+}
+
+// The extensions a glTF file uses (`extensionsUsed`) that the bake does not read. Read from the
+// file's JSON: assimp does not report them, and one it does not know would pass unnoticed.
+std::vector<std::string> IgnoredGltfExtensions(std::string_view json, const aiScene& scene) {
+  google::protobuf::Value root;
+  if (!google::protobuf::util::JsonStringToMessage(std::string(json), &root).ok()) return {};
+  if (!root.has_struct_value()) return {};
+  const auto& fields = root.struct_value().fields();
+  const auto used = fields.find("extensionsUsed");
+  if (used == fields.end() || !used->second.has_list_value()) return {};
+  // Read: they change what the bake sees. KHR_materials_emissive_strength only when the importer
+  // reported it (assimp 5.2.5 does not).
+  std::set<std::string> read = {
+      "KHR_lights_punctual",        "KHR_texture_transform", "KHR_materials_pbrSpecularGlossiness",
+      "KHR_draco_mesh_compression", "KHR_mesh_quantization", "EXT_meshopt_compression"};
+  for (unsigned m = 0; m < scene.mNumMaterials; ++m) {
+    float strength = 0;
+    if (scene.mMaterials[m] != nullptr &&
+        scene.mMaterials[m]->Get(AI_MATKEY_EMISSIVE_INTENSITY, strength) == aiReturn_SUCCESS)
+      read.insert("KHR_materials_emissive_strength");
+  }
+  std::set<std::string> ignored;
+  for (const google::protobuf::Value& name : used->second.list_value().values()) {
+    if (name.has_string_value() && read.count(name.string_value()) == 0)
+      ignored.insert(name.string_value());
+  }
+  return {ignored.begin(), ignored.end()};
+}
+
 // Whether an importer that lists `format` among its extensions reads `bytes`. When several
 // importers list an extension (glTF 1 and 2 both list gltf and glb), assimp asks them; when none
 // accepts, it tries every importer it has by signature (an STL file sent as gltf was read as
@@ -669,6 +710,15 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
   }
   if (fileMaterials) {
     PB_ASSIGN_OR_RETURN(out.lights, FileLights(*scene, nodeTransforms, format, fieldPath));
+    if (format == "gltf" || format == "glb") {
+      out.ignoredExtensions = IgnoredGltfExtensions(GltfJsonOf(bytes, format), *scene);
+      for (const std::string& extension : out.ignoredExtensions) {
+        Logger("job")->info(
+            "{}: glTF extension {} ignored (it does not change diffuse transport, "
+            "or is not read)",
+            fieldPath, extension);
+      }
+    }
   }
   // Taken last: the textures above may have read references.
   if (!references->firstError().ok()) return references->firstError();

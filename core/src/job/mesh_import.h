@@ -49,6 +49,9 @@ struct ImportedMesh {
   // With the file's materials: its lights (glTF KHR_lights_punctual), placed by their nodes, in
   // the job's units (photometric values / kLumensPerWatt).
   std::vector<Light> lights;
+  // With the file's materials: the glTF extensions the file uses that the bake ignores (they do
+  // not change diffuse transport), sorted; each is logged once.
+  std::vector<std::string> ignoredExtensions;
   // Every file the model referenced and the import read, by its normalized path
   // (NormalizeModelPath) to its bytes: a glTF's external buffers and images, an OBJ's .mtl and
   // texture maps.

@@ -216,6 +216,9 @@ struct BakeJob {
   std::string sceneDigest;   // sha256 hex of the canonical scene (assets by content digest)
   std::string jobDigest;     // sha256 hex of the canonical job + kBakerVersion (the cache key)
   std::string settingsJson;  // the resolved settings as JSON, recorded in the volume
+  // What the job's files hold that the bake ignores ("scene.meshes[0]: KHR_materials_sheen"),
+  // in mesh order, recorded in the volume's `ignored` metadata.
+  std::vector<std::string> ignored;
 };
 
 }  // namespace probebake
