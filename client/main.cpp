@@ -157,6 +157,7 @@ JobLimits LimitsFrom(const v1::JobLimits& l) {
   limits.maxLights = l.max_lights();
   limits.maxAssetBytes = l.max_asset_bytes();
   limits.maxEnvironmentPixels = l.max_environment_pixels();
+  limits.maxTexturePixels = l.max_texture_pixels();
   return limits;
 }
 

@@ -96,6 +96,10 @@ int main(int argc, char** argv) {
                  "Environment map pixels")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  app.add_option("--max-texture-pixels", options.limits.maxTexturePixels,
+                 "Pixels of a texture of a mesh file's materials")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   app.add_option("--max-blob-bytes", options.maxBlobBytes, "Bytes per uploaded blob")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();

@@ -68,6 +68,7 @@ CapabilitiesService::CapabilitiesService(std::shared_ptr<const TokenAuth> auth,
   l->set_max_lights(config.limits.maxLights);
   l->set_max_asset_bytes(config.limits.maxAssetBytes);
   l->set_max_environment_pixels(config.limits.maxEnvironmentPixels);
+  l->set_max_texture_pixels(config.limits.maxTexturePixels);
   capabilities_.set_max_queued_jobs(config.maxQueuedJobs);
   capabilities_.set_max_concurrent_jobs(config.maxConcurrentJobs);
   capabilities_.set_threads_per_job(config.threadsPerJob);

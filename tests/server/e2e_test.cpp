@@ -219,8 +219,14 @@ TEST(EndToEnd, AGltfWithExternalFilesBakesTheSameThroughTheServerAndUploadsEachF
   TempDir dir;
   std::filesystem::create_directories(dir.path() / "models" / "textures");
   std::ofstream(dir.path() / "models" / "floor.bin", std::ios::binary) << FloorBin();
-  // The texture is read and uploaded, not yet decoded: any bytes do.
-  std::ofstream(dir.path() / "models" / "textures" / "grey.png", std::ios::binary) << "png bytes";
+  // A 2 x 2 mid-grey PNG: decoded and sampled on both sides alike.
+  static const char kGreyPng[] =
+      "\x89\x50\x4e\x47\x0d\x0a\x1a\x0a\x00\x00\x00\x0d\x49\x48\x44\x52\x00\x00\x00\x02"
+      "\x00\x00\x00\x02\x08\x02\x00\x00\x00\xfd\xd4\x9a\x73\x00\x00\x00\x0e\x49\x44\x41\x54"
+      "\x78\x9c\x63\x68\x00\x03\x06\x08\x05\x00\x2a\x0e\x06\x01\x15\x9e\x42\xd7\x00\x00"
+      "\x00\x00\x49\x45\x4e\x44\xae\x42\x60\x82";
+  std::ofstream(dir.path() / "models" / "textures" / "grey.png", std::ios::binary)
+      << std::string(kGreyPng, sizeof kGreyPng - 1);
   // Two models sharing the buffer and the texture: 4 distinct files.
   std::ofstream(dir.path() / "models" / "a.gltf")
       << FloorGltf("floor.bin", "textures/grey.png", 0.5);

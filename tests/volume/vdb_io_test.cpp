@@ -240,6 +240,22 @@ TEST(VdbIo, RawMetadataHoldsEveryKeyAsText) {
       ",\"samples\":" + std::to_string(volume.stats.samples) +
       ",\"threads\":2,\"wallSeconds\":12.345678901234567}";
   EXPECT_EQ(read->rawMetadata.at("stats"), expectedStats);
+  // Nothing ignored: no `ignored` key (volumes of jobs without file extensions are unchanged).
+  EXPECT_EQ(read->rawMetadata.count("ignored"), 0u);
+  EXPECT_EQ(read->meta.ignored, "");
+}
+
+TEST(VdbIo, WhatTheBakeIgnoredIsRecorded) {
+  const ProbeVolume volume = MakeTestVolume(TestVolumeSpec{});
+  VolumeMetadata meta = MakeTestMetadata();
+  meta.ignored = "scene.meshes[0]: KHR_materials_clearcoat\nscene.meshes[2]: KHR_materials_sheen";
+  TempDir dir;
+  const std::string path = dir.File("v.vdb");
+  PB_ASSERT_OK(WriteProbeVolume(path, volume, meta));
+  const absl::StatusOr<ProbeVolumeFile> read = ReadProbeVolume(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->meta.ignored, meta.ignored);
+  EXPECT_EQ(read->rawMetadata.at("ignored"), meta.ignored);
 }
 
 // Counts up to 2^53 - 1 and wallSeconds read back exactly, whatever form protobuf prints them in

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "probebake/sampling/warps.h"
+#include "surface_material.h"
 
 namespace probebake {
 
@@ -21,18 +22,23 @@ std::optional<MeshEmitter> MeshEmitter::Build(const Scene& scene, const TracerSc
     const Vec3d& c = m.positions[m.indices[3 * t + 2]];
     areas[t] = 0.5 * Length(Cross(b - a, c - a));
   }
-  MeshEmitter light(m, tracer, mesh, emission, areas);
+  MeshEmitter light(m, tracer, mesh, scene.materials[m.material], areas);
   if (!(light.area_ > 0)) return std::nullopt;
   return light;
 }
 
 MeshEmitter::MeshEmitter(const TriangleMesh& mesh, const TracerScene& tracer, uint32_t index,
-                         const Vec3d& radiance, std::span<const double> triangleAreas)
+                         const Material& material, std::span<const double> triangleAreas)
     : mesh_(&mesh),
       tracer_(&tracer),
       index_(index),
-      radiance_(radiance),
-      power_(Luminance(radiance)),
+      radiance_(material.emission),
+      // A textured emitter's power at the map's mean: the selection probability is consistent
+      // whatever it is, only its variance depends on it.
+      power_(Luminance(material.emission) *
+             (material.emissionMap.image ? MeanLuminance(material.emissionMap) : 1.0)),
+      material_(material.emissionMap.image || material.HasCutout() ? &material : nullptr),
+      doubleSided_(material.doubleSided),
       triangles_(triangleAreas) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const Vec3d& offset = tracer.offset();
@@ -65,12 +71,17 @@ bool MeshEmitter::Sample(const Vec3d& p, const Vec3d* /*n*/, const Vec2d& u, Lig
   const double d = std::sqrt(d2);
   s->wi = v * (1 / d);
   const Vec3d ng = Vec3d(tracer_->TriangleNormal(index_, uint32_t(t)));
-  const double cosLight = -Dot(s->wi, ng);
+  double cosLight = -Dot(s->wi, ng);
+  if (doubleSided_) cosLight = std::fabs(cosLight);
   if (cosLight <= 0) return false;  // emissive triangles emit from their front side only
+  if (material_ && material_->HasCutout() &&
+      CoverageAt(*material_, *mesh_, uint32_t(t), bary[1], bary[2]) < material_->alphaCutoff)
+    return false;  // a cut-out point emits nothing
   s->distance = d;
   s->point = q;
   s->vertexScale = vertexScale_;
-  s->radiance = radiance_;
+  s->radiance =
+      material_ ? EmissionAt(*material_, *mesh_, uint32_t(t), bary[1], bary[2]) : radiance_;
   // pmf(t) = area_t / area; uniform on t: 1 / area_t; together 1 / area.
   s->pdf = d2 / (area_ * cosLight);
   return true;
@@ -78,9 +89,12 @@ bool MeshEmitter::Sample(const Vec3d& p, const Vec3d* /*n*/, const Vec2d& u, Lig
 
 bool MeshEmitter::EvalHit(const Vec3d& /*p*/, const Vec3d& wi, const SurfaceHit& hit, double pmf,
                           LightHit* out) const {
-  const double cosLight = -Dot(wi, hit.ng);
+  double cosLight = -Dot(wi, hit.ng);
+  if (doubleSided_) cosLight = std::fabs(cosLight);
   if (cosLight <= 0) return false;
-  out->radiance = radiance_;
+  out->radiance = material_ && material_->emissionMap.image
+                      ? EmissionAt(*material_, *mesh_, hit.prim, hit.u, hit.v)
+                      : radiance_;
   out->pdf = pmf * (hit.t * hit.t) / (area_ * cosLight);
   return true;
 }

@@ -1,8 +1,10 @@
 // An emissive mesh as one light (emitter.h's contract, family kSurface): every triangle of a mesh
 // whose material emits, emitting from its front side (counter-clockwise) with the material's
-// radiance. Sampled by picking a triangle in proportion to its area, then a point uniform on it:
-// the area pdf is 1 / (the mesh's area). Importance: luminance x area / d^2 to the centre of its
-// bounds (d^2 floored at the area), 0 where its bounds lie wholly below p's tangent plane.
+// radiance (times its emission map at the point, if any; from both sides when double-sided;
+// nothing where a cutout removes it). Sampled by picking a triangle in
+// proportion to its area, then a point uniform on it: the area pdf is 1 / (the mesh's area).
+// Importance: luminance x area / d^2 to the centre of its bounds (d^2 floored at the area), 0 where
+// its bounds lie wholly below p's tangent plane.
 #pragma once
 
 #include <algorithm>
@@ -43,7 +45,7 @@ class MeshEmitter {
 
  private:
   MeshEmitter(const TriangleMesh& mesh, const TracerScene& tracer, uint32_t index,
-              const Vec3d& radiance, std::span<const double> triangleAreas);
+              const Material& material, std::span<const double> triangleAreas);
 
   // True when every corner of the bounds lies on or below the plane through p with normal n.
   bool BoundsBelow(const Vec3d& p, const Vec3d& n) const {
@@ -57,8 +59,11 @@ class MeshEmitter {
   const TriangleMesh* mesh_;
   const TracerScene* tracer_;
   uint32_t index_;  // in Scene::meshes
-  Vec3d radiance_;
+  Vec3d radiance_;  // the material's constant emission
   double power_;
+  // Set when the radiance varies over the surface: an emission map, or a cutout.
+  const Material* material_;
+  bool doubleSided_;  // emits from both sides
   double area_ = 0;
   Vec3d lo_, hi_;  // bounds (local)
   Vec3d centre_;   // of the bounds

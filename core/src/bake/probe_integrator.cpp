@@ -18,6 +18,7 @@
 #include "probebake/sh/sh_basis.h"
 #include "probebake/volume/visibility_map.h"
 #include "ray_offset.h"
+#include "surface_material.h"
 
 namespace probebake {
 namespace {
@@ -761,9 +762,10 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
         const std::span<const double> before =
             bounce == 1 ? probe.importance
                         : std::span<const double>(importanceBefore + j * size, size);
+        Vec3d albedoHere;  // a varying albedo's value at the hit, when Arrive reads one
         const Vec3d* albedo =
             Arrive(g->found[k], hit, bounce, s.pPrev, s.hasNormal ? &s.nPrev : nullptr, before,
-                   s.total, s.wi, s.pdfDir, s.beta, &s.radiance);
+                   s.total, s.wi, s.pdfDir, s.beta, &s.radiance, &albedoHere);
         if (!albedo) continue;
         if constexpr (kMedium) drawn = DrawVertexNumbers(samplers[g->batch[j]]);
         if (MaxComponent(*albedo) <= 0) continue;
@@ -868,7 +870,7 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
 [[gnu::always_inline]] inline const Vec3d* ProbeIntegrator::Arrive(
     bool found, const SurfaceHit& hit, int bounce, const Vec3d& pPrev, const Vec3d* nPrev,
     std::span<const double> importancePrev, double totalPrev, const Vec3d& wi, double pdfDir,
-    const Vec3d& beta, Vec3d* radiance) const {
+    const Vec3d& beta, Vec3d* radiance, Vec3d* albedoHere) const {
   if (!found) {
     if (countEmission_) {
       lights_.ForEachEscaped(nPrev, importancePrev, totalPrev, wi, [&](const LightHit& h) {
@@ -887,7 +889,11 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
   }
   if (hit.kind != SurfaceKind::kMesh) return nullptr;  // area lights' surfaces absorb
   if (bounce > settings_.maxDepth) return nullptr;
-  return &scene_.materials[scene_.meshes[hit.index].material].albedo;
+  const TriangleMesh& mesh = scene_.meshes[hit.index];
+  const Material& material = scene_.materials[mesh.material];
+  if (!material.AlbedoVaries()) return &material.albedo;
+  *albedoHere = AlbedoAt(material, mesh, hit.prim, hit.u, hit.v);
+  return albedoHere;
 }
 
 [[gnu::always_inline]] inline void ProbeIntegrator::ShadeSurface(

@@ -201,10 +201,12 @@ class ProbeIntegrator {
   // to totalPrev) along wi, drawn with pdf pdfDir, finds at `hit` or, when not found, beyond the
   // scene, times beta and its MIS weight, added to *radiance. Returns the albedo of the diffuse
   // vertex the path continues from, or nullptr when it ends there (no hit, a light's surface, or
-  // bounce past maxDepth).
+  // bounce past maxDepth): the material's constant albedo, or, where it varies over the surface,
+  // its value at the hit written to *albedoHere.
   const Vec3d* Arrive(bool found, const SurfaceHit& hit, int bounce, const Vec3d& pPrev,
                       const Vec3d* nPrev, std::span<const double> importancePrev, double totalPrev,
-                      const Vec3d& wi, double pdfDir, const Vec3d& beta, Vec3d* radiance) const;
+                      const Vec3d& wi, double pdfDir, const Vec3d& beta, Vec3d* radiance,
+                      Vec3d* albedoHere) const;
   // Shades the diffuse vertex (albedo > 0) at `hit`, reached along wi, as vertex `bounce` with the
   // numbers u: its light sample, continuation and roulette. `importance` gets its light
   // importance; *beta becomes the continuation's throughput.

@@ -46,7 +46,7 @@ bool ProbeValid(const TracerScene& tracer, const BakeSettings& settings, const V
     SurfaceHit hit;
     ++*rays;
     if (tracer.Intersect(o, wi, std::numeric_limits<double>::infinity(), &hit) &&
-        hit.kind == SurfaceKind::kMesh && Dot(wi, hit.ng) > 0)
+        hit.kind == SurfaceKind::kMesh && Dot(wi, hit.ng) > 0 && !tracer.DoubleSided(hit.index))
       ++backfaces;
   }
   return double(backfaces) <= settings.backfaceFraction * kValidityRays;
@@ -83,7 +83,7 @@ bool ProbeRelocator::MoveIsClear(const Vec3d& from, const Vec3d& to, bool leavin
   if (!tracer_.Intersect(Vec3f(from), dir, length, &hit)) return true;
   // A back face (the ray leaves through the side the normal points to) of an invalid probe's
   // solid; anything else is a wall or another solid's front.
-  if (!leaving || Dot(dir, hit.ng) <= 0) return false;
+  if (!leaving || Dot(dir, hit.ng) <= 0 || tracer_.DoubleSided(hit.index)) return false;
   const Vec3f past = OffsetRayOrigin(hit.p, hit.ng, hit.vertexScale);
   const double rest = Length(to - Vec3d(past));
   SurfaceHit again;

@@ -14,6 +14,7 @@
 #include "probebake/base/log.h"
 #include "probebake/base/status.h"
 #include "ray_offset.h"
+#include "surface_material.h"
 
 namespace probebake {
 namespace {
@@ -119,6 +120,27 @@ void SetLane(RTCRay8& packet, int k, const RTCRay& one) {
   packet.flags[k] = one.flags;
 }
 
+// A mesh with a cutout material, as its Embree filter functions see it.
+struct Cutout {
+  const Material* material;
+  const TriangleMesh* mesh;
+};
+
+// Embree's intersection and occlusion filter of a cutout mesh: a hit where the coverage is below
+// the material's cutoff is rejected, and the ray goes on as if the triangle were not there (for
+// every ray: paths, shadow rays, validity). Installed only on such meshes: other geometry is
+// traced without a callback.
+void CutoutFilter(const RTCFilterFunctionNArguments* args) {
+  const auto* cutout = static_cast<const Cutout*>(args->geometryUserPtr);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] == 0) continue;
+    const uint32_t prim = RTCHitN_primID(args->hit, args->N, i);
+    const double u = RTCHitN_u(args->hit, args->N, i), v = RTCHitN_v(args->hit, args->N, i);
+    if (CoverageAt(*cutout->material, *cutout->mesh, prim, u, v) < cutout->material->alphaCutoff)
+      args->valid[i] = 0;
+  }
+}
+
 }  // namespace
 
 struct TracerScene::Impl {
@@ -126,6 +148,7 @@ struct TracerScene::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
   std::vector<uint32_t> meshOfGeom;
+  std::vector<std::unique_ptr<Cutout>> cutouts;  // Embree's user data of cutout meshes
 
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
@@ -213,6 +236,7 @@ absl::StatusOr<std::unique_ptr<TracerScene>> TracerScene::Build(const Scene& sce
   out->normals_.resize(scene.meshes.size());
   out->meshVerts_.assign(scene.meshes.size(), nullptr);
   out->meshIndices_.assign(scene.meshes.size(), nullptr);
+  out->doubleSided_.assign(scene.meshes.size(), 0);
   for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
     const TriangleMesh& mesh = scene.meshes[m];
     if (mesh.TriangleCount() == 0) continue;
@@ -248,6 +272,19 @@ absl::StatusOr<std::unique_ptr<TracerScene>> TracerScene::Build(const Scene& sce
     }
     out->meshVerts_[m] = verts;
     out->meshIndices_[m] = indices;
+    const Material& material = scene.materials[mesh.material];
+    out->doubleSided_[m] = material.doubleSided;
+    if (material.HasCutout()) {
+      if (!rtcGetDeviceProperty(impl.device, RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED)) {
+        rtcReleaseGeometry(geom);
+        return absl::InternalError("Embree was built without filter functions: cutout material " +
+                                   material.name + " cannot be traced");
+      }
+      impl.cutouts.push_back(std::make_unique<Cutout>(Cutout{&material, &mesh}));
+      rtcSetGeometryUserData(geom, impl.cutouts.back().get());
+      rtcSetGeometryIntersectFilterFunction(geom, CutoutFilter);
+      rtcSetGeometryOccludedFilterFunction(geom, CutoutFilter);
+    }
     attach(geom, SurfaceKind::kMesh, m);
   }
 
@@ -367,6 +404,8 @@ void TracerScene::FillHit(uint32_t geomID, uint32_t primID, float u, float v, co
   hit->kind = info.kind;
   hit->index = info.index;
   hit->prim = primID;
+  hit->u = u;
+  hit->v = v;
   if (info.kind == SurfaceKind::kMesh) {
     const float* verts = meshVerts_[info.index];
     const uint32_t* idx = meshIndices_[info.index] + 3 * primID;

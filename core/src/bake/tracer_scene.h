@@ -1,6 +1,8 @@
 // The ray-traceable scene of one bake: Embree 3 device and BVH over the meshes and the area
 // lights' own surfaces (rect: two triangles, disk: an oriented disc, sphere: a sphere), built once
-// per job and held in RAII wrappers.
+// per job and held in RAII wrappers. Meshes with a cutout material (scene.h) reject hits where
+// their coverage is below the cutoff, for every query that traces rays; the point queries
+// (MeshWithin, MeshSurfaceAt) see their triangles whole. The scene must outlive the tracer.
 //
 // Coordinates: the tracer works in "local" coordinates, world minus `offset` (the centre of the
 // scene's bounds), in double. Embree stores float vertices of the local coordinates, so a scene far
@@ -32,6 +34,9 @@ struct SurfaceHit {
   SurfaceKind kind = SurfaceKind::kMesh;
   uint32_t index = 0;  // mesh index (kMesh) or light index in Scene::lights
   uint32_t prim = 0;   // triangle index within the mesh
+  // Embree's barycentrics of the hit on triangle `prim`, p = (1 - u - v) a + u b + v c (meshes
+  // and rect lights): where a material's textures and vertex colours are read.
+  float u = 0, v = 0;
 };
 
 // The Embree device configuration of every bake. Embree picks its kernels by the CPU's
@@ -88,6 +93,9 @@ class TracerScene {
   const Vec3d& offset() const { return offset_; }
   // Unit geometric normal of triangle `prim` of mesh `mesh` (local = world orientation).
   const Vec3f& TriangleNormal(uint32_t mesh, uint32_t prim) const { return normals_[mesh][prim]; }
+  // Whether both sides of mesh `mesh` are front faces (its material is double-sided): for
+  // validity, a back-face hit on it counts as a front one.
+  bool DoubleSided(uint32_t mesh) const { return doubleSided_[mesh] != 0; }
   // Local-coordinate bounds of all geometry (meshes and area lights); empty scenes give min > max.
   const Vec3d& boundsMin() const { return boundsMin_; }
   const Vec3d& boundsMax() const { return boundsMax_; }
@@ -118,6 +126,7 @@ class TracerScene {
   // the Embree scene.
   std::vector<const float*> meshVerts_;
   std::vector<const uint32_t*> meshIndices_;
+  std::vector<uint8_t> doubleSided_;  // per mesh
 };
 
 // The centre of the bounds of everything finite in the scene (meshes, finite lights), or the world

@@ -88,11 +88,40 @@ std::string AssetName(const std::string& file, const v1::Digest& blob) {
   return file.empty() ? "blob " + blob.hash() : file;
 }
 
+// Moves a file's light by a mesh's row-major 4x4 `transform` (last row 0 0 0 1): positions as
+// points, directions as vectors (renormalized); intensities are unchanged.
+template <typename Transform>
+absl::Status TransformLight(const Transform& t, const std::string& path, Light* light) {
+  const auto point = [&](const Vec3d& p) {
+    return Vec3d{t[0] * p.x + t[1] * p.y + t[2] * p.z + t[3],
+                 t[4] * p.x + t[5] * p.y + t[6] * p.z + t[7],
+                 t[8] * p.x + t[9] * p.y + t[10] * p.z + t[11]};
+  };
+  const auto vector = [&](const Vec3d& d) {
+    return Normalize(Vec3d{t[0] * d.x + t[1] * d.y + t[2] * d.z,
+                           t[4] * d.x + t[5] * d.y + t[6] * d.z,
+                           t[8] * d.x + t[9] * d.y + t[10] * d.z});
+  };
+  if (auto* p = std::get_if<PointLight>(light)) {
+    p->position = point(p->position);
+    if (!IsFinite(p->position)) return FieldError(path + ".transform", "moves a light to infinity");
+  } else if (auto* s = std::get_if<SpotLight>(light)) {
+    s->position = point(s->position);
+    s->direction = vector(s->direction);
+    if (!IsFinite(s->position) || !IsFinite(s->direction))
+      return FieldError(path + ".transform", "moves a light to infinity");
+  } else if (auto* d = std::get_if<DirectionalLight>(light)) {
+    d->direction = vector(d->direction);
+  }
+  return absl::OkStatus();
+}
+
 // Builds the world-space mesh of job mesh `i` and makes its reference canonical.
 class MeshBuilder {
  public:
-  MeshBuilder(const AssetSource& assets, const JobLimits& limits)
-      : assets_(assets), limits_(limits) {}
+  // `jobLights`: the job's own lights, added after the meshes'.
+  MeshBuilder(const AssetSource& assets, const JobLimits& limits, int64_t jobLights)
+      : assets_(assets), limits_(limits), jobLights_(jobLights) {}
 
   // `material`: the index of the job's material for the mesh; -1 uses the file's own materials.
   absl::Status Add(const v1::Mesh& spec, const std::string& path, int64_t material,
@@ -126,14 +155,17 @@ class MeshBuilder {
         }
         return referenced;
       };
-      PB_ASSIGN_OR_RETURN(raw, job_internal::ImportMesh(bytes, format, name, fieldPath, triangles_,
-                                                        limits_.maxTriangles, readReference,
-                                                        /*fileMaterials=*/material < 0));
+      PB_ASSIGN_OR_RETURN(
+          raw, job_internal::ImportMesh(bytes, format, name, fieldPath, triangles_,
+                                        limits_.maxTriangles, readReference,
+                                        /*fileMaterials=*/material < 0, limits_.maxTexturePixels));
       // The job digest covers what the import read, whoever supplied it.
       canonical->clear_references();
       for (const auto& [modelPath, referenced] : raw.references)
         (*canonical->mutable_references())[modelPath] = DigestOf(referenced);
       raw.references.clear();
+      for (const std::string& extension : raw.ignoredExtensions)
+        ignored_.push_back(path + ": " + extension);
     } else {
       raw.positions.reserve(size_t(spec.positions_size() / 3));
       for (int k = 0; k + 2 < spec.positions_size(); k += 3)
@@ -186,6 +218,22 @@ class MeshBuilder {
       scene->meshes.push_back(std::move(mesh));
       return absl::OkStatus();
     }
+    // The file's lights, moved by the mesh's transform like its vertices.
+    if (!raw.lights.empty()) {
+      // With the job's own lights (counted against the limit by validation).
+      if (limits_.maxLights > 0 && int64_t(scene->lights.size() + raw.lights.size()) + jobLights_ >
+                                       int64_t(limits_.maxLights)) {
+        return FieldError(path, "the file's " + Num(raw.lights.size()) +
+                                    " lights bring the scene's lights above the limit of " +
+                                    Num(limits_.maxLights));
+      }
+      for (Light& light : raw.lights) {
+        if (spec.transform_size() == 16) {
+          PB_RETURN_IF_ERROR(TransformLight(spec.transform(), path, &light));
+        }
+        scene->lights.push_back(light);
+      }
+    }
     // The file's own materials: one scene mesh per material its triangles use, holding the
     // vertices its triangles index, in the file's material order.
     std::vector<TriangleMesh> parts(raw.materials.size());
@@ -196,19 +244,30 @@ class MeshBuilder {
     }
     for (size_t m = 0; m < parts.size(); ++m) {
       if (parts[m].indices.empty()) continue;
-      const job_internal::FileMaterial& fileMaterial = raw.materials[m];
-      parts[m].name = spec.name();
-      parts[m].material = uint32_t(scene->materials.size());
+      Material fileMaterial = raw.materials[m].material;
+      TriangleMesh& part = parts[m];
+      part.name = spec.name();
+      part.material = uint32_t(scene->materials.size());
+      // The per-vertex values the material reads, beside the positions.
+      const auto keep = [](bool used, const auto& all) { return used ? &all : nullptr; };
+      const auto* albedoUv = keep(bool(fileMaterial.albedoMap.image), raw.albedoUv);
+      const auto* emissionUv = keep(bool(fileMaterial.emissionMap.image), raw.emissionUv);
+      const auto* coverageUv = keep(bool(fileMaterial.coverageMap.image), raw.coverageUv);
+      const auto* colors = keep(fileMaterial.vertexColors, raw.colors);
       std::vector<uint32_t> remap(mesh.positions.size(), UINT32_MAX);
-      for (uint32_t& index : parts[m].indices) {
+      for (uint32_t& index : part.indices) {
         if (remap[index] == UINT32_MAX) {
-          remap[index] = uint32_t(parts[m].positions.size());
-          parts[m].positions.push_back(mesh.positions[index]);
+          remap[index] = uint32_t(part.positions.size());
+          part.positions.push_back(mesh.positions[index]);
+          if (albedoUv) part.albedoUv.push_back((*albedoUv)[index]);
+          if (emissionUv) part.emissionUv.push_back((*emissionUv)[index]);
+          if (coverageUv) part.coverageUv.push_back((*coverageUv)[index]);
+          if (colors) part.colors.push_back((*colors)[index]);
         }
         index = remap[index];
       }
-      scene->materials.push_back(
-          {path + ":" + fileMaterial.name, fileMaterial.albedo, fileMaterial.emission});
+      fileMaterial.name = path + ":" + fileMaterial.name;
+      scene->materials.push_back(std::move(fileMaterial));
       scene->meshes.push_back(std::move(parts[m]));
     }
     return absl::OkStatus();
@@ -217,6 +276,13 @@ class MeshBuilder {
  private:
   const AssetSource& assets_;
   const JobLimits& limits_;
+  int64_t jobLights_;
+  std::vector<std::string> ignored_;
+
+ public:
+  const std::vector<std::string>& ignored() const { return ignored_; }
+
+ private:
   int64_t triangles_ = 0;
 };
 
@@ -495,13 +561,14 @@ absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource&
     out.materials.push_back({m.name(), ToVec3(m.albedo()), ToVec3(m.emission())});
   }
 
-  MeshBuilder meshes(assets, limits);
+  MeshBuilder meshes(assets, limits, scene.lights_size());
   for (int i = 0; i < scene.meshes_size(); ++i) {
     const v1::Mesh& m = scene.meshes(i);
     const int64_t material = m.material().empty() ? -1 : int64_t(materialIndex.at(m.material()));
     PB_RETURN_IF_ERROR(
         meshes.Add(m, Index("scene.meshes", i), material, canonical.mutable_meshes(i), &out));
   }
+  job.ignored = meshes.ignored();
   for (const v1::Light& l : scene.lights()) out.lights.push_back(BuildLight(l));
   PB_RETURN_IF_ERROR(CheckSceneSpan(out));
   PB_RETURN_IF_ERROR(BuildEnvironment(scene.environment(), assets, limits,

@@ -17,22 +17,7 @@
 
 #include "probebake/base/status.h"
 
-// stb_image compiled here, static and for Radiance files only: libraries this one links (assimp's
-// draco) carry their own copies of stb_image's symbols, so a call to a shared stbi_* function
-// could run another version's decoder; static functions are this file's own.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wshadow"
-#pragma GCC diagnostic ignored "-Wpedantic"
-#pragma GCC diagnostic ignored "-Wsign-compare"
-#pragma GCC diagnostic ignored "-Wunused-function"
-#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
-#pragma GCC diagnostic ignored "-Wimplicit-fallthrough"
-#define STB_IMAGE_STATIC
-#define STB_IMAGE_IMPLEMENTATION
-#define STBI_ONLY_HDR
-#define STBI_NO_STDIO
-#include "stb_image.h"
-#pragma GCC diagnostic pop
+#include "stb_image_decode.h"
 #include "text.h"
 
 namespace probebake::job_internal {
@@ -208,26 +193,22 @@ absl::Status CheckSize(int64_t width, int64_t height, int64_t maxPixels, const s
 absl::Status DecodeRadianceHdr(std::string_view bytes, const std::string& what,
                                const std::string& fieldPath, int64_t maxPixels,
                                EnvironmentMap* map) {
-  if (bytes.size() > size_t(INT32_MAX)) return FieldError(fieldPath, what + " is too large");
-  const auto* data = reinterpret_cast<const stbi_uc*>(bytes.data());
-  int width = 0, height = 0, channels = 0;
-  if (!stbi_info_from_memory(data, int(bytes.size()), &width, &height, &channels)) {
-    return FieldError(fieldPath, "cannot read " + what +
-                                     " as Radiance HDR: " + std::string(stbi_failure_reason()));
+  StbImageInfo info;
+  std::string error;
+  if (!StbImageHeader(bytes, &info, &error) || !info.radiance) {
+    return FieldError(fieldPath, "cannot read " + what + " as Radiance HDR: " +
+                                     (error.empty() ? "not a Radiance HDR file" : error));
   }
+  const int width = info.width, height = info.height;
   PB_RETURN_IF_ERROR(CheckSize(width, height, maxPixels, what, fieldPath));
   if (const std::string problem = RadianceDataProblem(bytes); !problem.empty())
     return FieldError(fieldPath, "cannot read " + what + " as Radiance HDR: " + problem);
-  std::unique_ptr<float, void (*)(void*)> pixels(
-      stbi_loadf_from_memory(data, int(bytes.size()), &width, &height, &channels, 3),
-      stbi_image_free);
-  if (!pixels) {
-    return FieldError(fieldPath, "cannot read " + what +
-                                     " as Radiance HDR: " + std::string(stbi_failure_reason()));
-  }
+  std::vector<float> rgb;
+  if (!StbDecodeRadiance(bytes, &rgb, &error))
+    return FieldError(fieldPath, "cannot read " + what + " as Radiance HDR: " + error);
   map->width = width;
   map->height = height;
-  map->rgb.assign(pixels.get(), pixels.get() + size_t(width) * size_t(height) * 3);
+  map->rgb = std::move(rgb);
   return absl::OkStatus();
 }
 

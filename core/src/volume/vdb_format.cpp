@@ -221,6 +221,8 @@ VolumeMetadata VolumeMetadataFor(const BakeJob& job) {
   meta.seed = job.settings.seed;
   meta.sceneDigest = job.sceneDigest;
   meta.settingsJson = job.settingsJson;
+  for (const std::string& item : job.ignored)
+    meta.ignored += (meta.ignored.empty() ? "" : "\n") + item;
   return meta;
 }
 

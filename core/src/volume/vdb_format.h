@@ -23,6 +23,8 @@ inline constexpr const char* kKeyMaxDepth = "max_depth";
 inline constexpr const char* kKeySeed = "seed";
 inline constexpr const char* kKeySceneDigest = "scene_digest";
 inline constexpr const char* kKeySettings = "settings";
+// Optional (written when non-empty): what the job's files hold that the bake ignored.
+inline constexpr const char* kKeyIgnored = "ignored";
 inline constexpr const char* kKeyGenerator = "generator";
 inline constexpr const char* kKeyStats = "stats";
 inline constexpr const char* kKeyGridCounts = "grid_counts";

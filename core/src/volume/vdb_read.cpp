@@ -246,6 +246,7 @@ absl::StatusOr<ProbeVolumeFile> ReadImpl(const std::string& path) {
   vm.seed = static_cast<uint64_t>(seed);
   PB_RETURN_IF_ERROR(meta.Get(kKeySceneDigest, &vm.sceneDigest));
   PB_RETURN_IF_ERROR(meta.Get(kKeySettings, &vm.settingsJson));
+  if (meta.Has(kKeyIgnored)) PB_RETURN_IF_ERROR(meta.Get(kKeyIgnored, &vm.ignored));
 
   // The grids the format has, and no others.
   std::vector<ExpectedGrid> expected;

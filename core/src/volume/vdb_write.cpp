@@ -159,6 +159,7 @@ vdb::MetaMap FileMetadata(const ProbeVolume& volume, const VolumeMetadata& meta,
   m.insertMeta(kKeySeed, vdb::Int64Metadata(static_cast<int64_t>(meta.seed)));
   m.insertMeta(kKeySceneDigest, vdb::StringMetadata(meta.sceneDigest));
   m.insertMeta(kKeySettings, vdb::StringMetadata(meta.settingsJson));
+  if (!meta.ignored.empty()) m.insertMeta(kKeyIgnored, vdb::StringMetadata(meta.ignored));
   m.insertMeta(kKeyGenerator, vdb::StringMetadata(std::string(kGeneratorName) + " " + kVersion));
   m.insertMeta(kKeyStats, vdb::StringMetadata(statsJson));
   m.insertMeta(kKeyGridCounts,

@@ -87,6 +87,8 @@ struct VolumeMetadata {
   uint64_t seed = 0;
   std::string sceneDigest;
   std::string settingsJson;
+  // What the job's files hold that the bake ignored, one item per line ("" when nothing).
+  std::string ignored;
 };
 
 }  // namespace probebake

@@ -39,6 +39,9 @@ struct JobLimits {
   // Environment map pixels (width * height of the data window): 12 bytes each as float RGB, plus
   // the sampling tables the tracer builds; 64M pixels (e.g. 11k x 5.7k) is ~1.5 GB.
   int64_t maxEnvironmentPixels = int64_t(1) << 26;
+  // Pixels of any one texture of a mesh file's materials (width * height), held as 8-bit RGBA:
+  // 64M pixels (8k x 8k) is 256 MB. Each image is decoded once per mesh that uses it.
+  int64_t maxTexturePixels = int64_t(1) << 26;
 };
 
 }  // namespace probebake

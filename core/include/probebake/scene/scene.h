@@ -6,6 +6,7 @@
 // counter-clockwise, geometric normal (b - a) x (c - a). Geometry occludes from both sides.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -18,10 +19,46 @@
 
 namespace probebake {
 
+// An 8-bit image a material samples: texel (x, y) at rgba[4 (x + width y)], row 0 the image's
+// top, the file's values (colour channels as encoded, alpha linear).
+struct Texture {
+  std::string name;  // the path the model wrote, for messages
+  int width = 0, height = 0;
+  std::vector<uint8_t> rgba;
+  bool hasAlpha = false;  // the file has an alpha channel (else every alpha is 255)
+};
+
+enum class TextureWrap : uint8_t { kRepeat, kClamp, kMirror };
+
+// A texture as a material reads it (texture_sample.h): at the mesh's per-vertex image coordinates
+// for this map (x right, y down, [0, 1]^2 spanning the image once, any uv transform of the file
+// already applied), bilinear between texel centres after decoding sRGB colour channels when
+// `srgb`.
+struct TextureMap {
+  std::shared_ptr<const Texture> image;  // null: no map
+  TextureWrap wrapX = TextureWrap::kRepeat, wrapY = TextureWrap::kRepeat;
+  bool srgb = true;
+};
+
+// A diffuse material. A mesh file's own materials may vary over the surface: textures and vertex
+// colours multiply the constant factors (docs/job-format.md, "The file's own materials").
 struct Material {
   std::string name;
-  Vec3d albedo;    // each channel in [0, 1)
-  Vec3d emission;  // radiance, each channel >= 0
+  Vec3d albedo;               // each channel in [0, 1)
+  Vec3d emission;             // radiance, each channel >= 0
+  TextureMap albedoMap;       // multiplies albedo; its alpha multiplies coverage
+  TextureMap emissionMap;     // multiplies emission
+  TextureMap coverageMap;     // multiplies coverage: its alpha, or red without alpha (never sRGB)
+  bool vertexColors = false;  // the mesh's colors multiply albedo (RGB) and coverage (A)
+  double coverage = 1;        // the alpha factor, [0, 1]
+  // Cutout: hits where the coverage is below this pass through, for every ray (0: opaque).
+  double alphaCutoff = 0;
+  // Both sides are front faces: for emission and for probe validity (both sides always reflect).
+  bool doubleSided = false;
+
+  // Whether albedo or coverage vary over the surface (textures, vertex colours).
+  bool AlbedoVaries() const { return albedoMap.image || vertexColors; }
+  bool HasCutout() const { return alphaCutoff > 0; }
 };
 
 // Triangles in world space (the job's transform already applied).
@@ -30,6 +67,10 @@ struct TriangleMesh {
   std::vector<Vec3d> positions;
   std::vector<uint32_t> indices;  // 3 per triangle, all < positions.size()
   uint32_t material = 0;          // index into Scene::materials
+  // Per vertex, present when the material has the map: its image coordinates (TextureMap).
+  std::vector<std::array<float, 2>> albedoUv, emissionUv, coverageUv;
+  // Per vertex, present when the material has vertex colours: linear RGBA.
+  std::vector<std::array<float, 4>> colors;
 
   size_t TriangleCount() const { return indices.size() / 3; }
 };
@@ -178,6 +219,9 @@ struct BakeJob {
   std::string sceneDigest;   // sha256 hex of the canonical scene (assets by content digest)
   std::string jobDigest;     // sha256 hex of the canonical job + kBakerVersion (the cache key)
   std::string settingsJson;  // the resolved settings as JSON, recorded in the volume
+  // What the job's files hold that the bake ignores ("scene.meshes[0]: KHR_materials_sheen"),
+  // in mesh order, recorded in the volume's `ignored` metadata.
+  std::vector<std::string> ignored;
 };
 
 }  // namespace probebake
