@@ -10,8 +10,8 @@
 //   base64 binary).
 // The page lights the meshes through integrations/shaders/probebake_probes.glsl on those textures
 // (trilinear, invalid probes skipped and the weights renormalised, like the slices), colour =
-// albedo * E / pi * exposure, then sRGB; each probe is a small sphere shaded by its own SH (E(n) / pi * exposure); a menu switches
-// the spheres to validity, std_error or sample-count colours.
+// albedo * E / pi * exposure, then sRGB; each probe is a small sphere shaded by its own SH (E(n) /
+// pi * exposure); a menu switches the spheres to validity, std_error or sample-count colours.
 #pragma once
 
 #include <string>
