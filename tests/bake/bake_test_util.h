@@ -64,6 +64,27 @@ inline void AddBox(Scene* scene, Vec3d lo, Vec3d hi, uint32_t material, bool inw
   scene->meshes.push_back(std::move(m));
 }
 
+// A room open to the sky over part of its roof, with a ceiling light, a sun through the opening,
+// a sky, and a box on the floor: first rays from a probe hit walls, the light, the box or escape,
+// and shadow rays go to all three kinds of light, blocked from some points and not from others.
+inline Scene RoomWithOpening() {
+  Scene scene;
+  const uint32_t white = AddMaterial(&scene, {0.7, 0.7, 0.7});
+  const uint32_t red = AddMaterial(&scene, {0.6, 0.1, 0.1});
+  AddQuad(&scene, {-4, -3, 0}, {4, -3, 0}, {4, 3, 0}, {-4, 3, 0}, white);    // floor
+  AddQuad(&scene, {-4, -3, 0}, {-4, 3, 0}, {-4, 3, 3}, {-4, -3, 3}, red);    // west
+  AddQuad(&scene, {4, -3, 0}, {4, -3, 3}, {4, 3, 3}, {4, 3, 0}, white);      // east
+  AddQuad(&scene, {-4, -3, 0}, {-4, -3, 3}, {4, -3, 3}, {4, -3, 0}, white);  // south
+  AddQuad(&scene, {-4, 3, 0}, {4, 3, 0}, {4, 3, 3}, {-4, 3, 3}, white);      // north
+  AddQuad(&scene, {-4, -3, 3}, {-4, 1, 3}, {4, 1, 3}, {4, -3, 3}, white);    // roof, y < 1
+  AddBox(&scene, {0.5, -1, 0}, {1.5, 0, 1}, red, /*inward=*/false);
+  scene.lights.push_back(RectLight{{-1, -2, 2.99}, {0, 1, 0}, {1, 0, 0}, {8, 8, 7}, false});
+  scene.lights.push_back(
+      DirectionalLight{Normalize(Vec3d{0.2, 0.4, -0.9}), {5, 5, 4}, std::cos(0.005)});
+  scene.environment = {Environment::Kind::kUniform, {0.3, 0.4, 0.6}, nullptr};
+  return scene;
+}
+
 // One probe at `p` (or a lattice), placement ALL, settings for statistical tests.
 inline BakeJob MakeJob(int order, int64_t samples, Vec3d p = {}) {
   BakeJob job;

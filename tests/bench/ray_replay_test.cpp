@@ -22,27 +22,6 @@ namespace {
 
 using namespace probebake::testing;
 
-// A room open to the sky over part of its roof, with a ceiling light, a sun through the opening
-// and a box on the floor: first rays from a probe hit walls, the light, the box or escape, and
-// shadow rays toward every light are blocked from some points and not from others.
-Scene RoomWithOpening() {
-  Scene scene;
-  const uint32_t white = AddMaterial(&scene, {0.7, 0.7, 0.7});
-  const uint32_t red = AddMaterial(&scene, {0.6, 0.1, 0.1});
-  AddQuad(&scene, {-4, -3, 0}, {4, -3, 0}, {4, 3, 0}, {-4, 3, 0}, white);    // floor
-  AddQuad(&scene, {-4, -3, 0}, {-4, 3, 0}, {-4, 3, 3}, {-4, -3, 3}, red);    // west
-  AddQuad(&scene, {4, -3, 0}, {4, -3, 3}, {4, 3, 3}, {4, 3, 0}, white);      // east
-  AddQuad(&scene, {-4, -3, 0}, {-4, -3, 3}, {4, -3, 3}, {4, -3, 0}, white);  // south
-  AddQuad(&scene, {-4, 3, 0}, {4, 3, 0}, {4, 3, 3}, {-4, 3, 3}, white);      // north
-  AddQuad(&scene, {-4, -3, 3}, {-4, 1, 3}, {4, 1, 3}, {4, -3, 3}, white);    // roof, y < 1
-  AddBox(&scene, {0.5, -1, 0}, {1.5, 0, 1}, red, /*inward=*/false);
-  scene.lights.push_back(RectLight{{-1, -2, 2.99}, {0, 1, 0}, {1, 0, 0}, {8, 8, 7}, false});
-  scene.lights.push_back(
-      DirectionalLight{Normalize(Vec3d{0.2, 0.4, -0.9}), {5, 5, 4}, std::cos(0.005)});
-  scene.environment = {Environment::Kind::kUniform, {0.3, 0.4, 0.6}, nullptr};
-  return scene;
-}
-
 struct Case {
   const char* name;
   bool medium;

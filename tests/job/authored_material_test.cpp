@@ -17,17 +17,7 @@
 #include "probebake/job/job.h"
 #include "probebake/job/job_json.h"
 
-// stb_image_write's own static copy (see core/src/job/stb_image_decode.h for why not the shared
-// one).
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmissing-field-initializers"
-#pragma GCC diagnostic ignored "-Wsign-compare"
-#pragma GCC diagnostic ignored "-Wunused-function"
-#pragma GCC diagnostic ignored "-Wimplicit-fallthrough"
-#define STB_IMAGE_WRITE_STATIC
-#define STB_IMAGE_WRITE_IMPLEMENTATION
-#include "stb_image_write.h"
-#pragma GCC diagnostic pop
+#include "job/stb_image_write_static.h"
 
 namespace probebake {
 namespace {
