@@ -29,6 +29,7 @@
 #include <fstream>
 #include <iterator>
 #include <optional>
+#include <random>
 #include <string_view>
 
 #include <CLI/CLI.hpp>
@@ -195,14 +196,17 @@ struct ShardFlags {
 };
 
 // The job of `jobPath`, its assets read from files beside it and, with a blob folder, from
-// blobs there. Error lines start with the path.
-absl::StatusOr<BakeJob> LoadJob(const std::string& jobPath, const std::string& blobDir) {
-  if (blobDir.empty()) return LoadBakeJob(jobPath, JobLimits());
+// blobs there; its mesh files taken from `imports` when given (an asset check's). Error lines
+// start with the path.
+absl::StatusOr<BakeJob> LoadJob(const std::string& jobPath, const std::string& blobDir,
+                                const MeshImports* imports = nullptr) {
+  if (blobDir.empty()) return LoadBakeJob(jobPath, JobLimits(), {nullptr, imports});
   absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
   if (!spec.ok()) return spec.status();
   const JobLimits limits;
-  absl::StatusOr<BakeJob> job = BuildBakeJob(
-      *spec, LocalAssetSource(JobFileDir(jobPath), blobDir, limits.maxAssetBytes), limits);
+  absl::StatusOr<BakeJob> job =
+      BuildBakeJob(*spec, LocalAssetSource(JobFileDir(jobPath), blobDir, limits.maxAssetBytes),
+                   limits, {nullptr, imports});
   if (job.ok()) return job;
   std::string message;
   for (absl::string_view line : absl::StrSplit(job.status().message(), '\n'))
@@ -260,13 +264,20 @@ int RunBake(const std::string& jobPath, const std::string& out, int threads, boo
   }
   ShardProgressFile progressFile(shardFlags.progressFile, shard, std::max(shards, 1));
   progressFile.Stage("planning");
+  // The job's files are imported by the check's child only; this process builds from its imports.
+  std::optional<MeshImports> imports;
   if (absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
       spec.ok() && !ListFileReferences(*spec).empty()) {
-    const absl::Status checked =
-        runtime::RunAssetCheck({SelfExecutable(), "check-assets", jobPath}, kAssetCheckTimeout);
-    if (!checked.ok()) return Fail(checked, jobPath);
+    const std::filesystem::path importsFile =
+        std::filesystem::temp_directory_path() /
+        absl::StrCat("probebake-imports-", getpid(), "-", std::random_device{}());
+    absl::StatusOr<MeshImports> checked = runtime::RunAssetCheck(
+        {SelfExecutable(), "check-assets", jobPath, "--imports-out", importsFile.string()},
+        kAssetCheckTimeout, importsFile);
+    if (!checked.ok()) return Fail(checked.status(), jobPath);
+    imports = std::move(*checked);
   }
-  absl::StatusOr<BakeJob> job = LoadJob(jobPath, shardFlags.blobDir);
+  absl::StatusOr<BakeJob> job = LoadJob(jobPath, shardFlags.blobDir, imports ? &*imports : nullptr);
   if (!job.ok()) return Fail(kExitUsage, std::string(job.status().message()));
   if (!shardFlags.expectJobDigest.empty() && job->jobDigest != shardFlags.expectJobDigest)
     return Fail(kExitUsage,
@@ -826,6 +837,8 @@ int Main(int argc, char** argv) {
   CLI::App* checkAssets = app.add_subcommand("check-assets");
   checkAssets->group("");
   checkAssets->add_option("job", jobPath)->required();
+  std::string importsOut;
+  checkAssets->add_option("--imports-out", importsOut)->required();
   CLI::App* inspect = app.add_subcommand("inspect", "Describe a probe volume file");
   inspect->add_option("volume", path, "Probe volume (.vdb, docs/volume-format.md)")->required();
   inspect->add_flag("--json", json, "One JSON object on stdout");
@@ -916,7 +929,7 @@ int Main(int argc, char** argv) {
 
   if (*checkAssets) {
     SetLogLevel(spdlog::level::warn);  // the bake that spawned it logs what matters
-    return runtime::RunLocalAssetCheckChild(jobPath, JobLimits());
+    return runtime::RunLocalAssetCheckChild(jobPath, importsOut, JobLimits());
   }
   if (*bake) return RunBake(jobPath, out, threads, json, shardFlags);
   if (*plan) return RunPlan(jobPath, shardCount, threads, json);

@@ -11,8 +11,10 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "probebake/base/log.h"
+#include "probebake/base/status.h"
 #include "probebake/job/job.h"
 #include "probebake/job/job_json.h"
+#include "runtime/files.h"
 #include "runtime/subprocess.h"
 
 namespace probebake::runtime {
@@ -95,9 +97,34 @@ Report ParseReport(const std::string& out) {
   return report;
 }
 
+// The child's outcome, as RunAssetCheck describes it.
+absl::Status CheckInChild(std::vector<std::string> argv, std::chrono::seconds timeout);
+
 }  // namespace
 
-absl::Status RunAssetCheck(std::vector<std::string> argv, std::chrono::seconds timeout) {
+absl::StatusOr<MeshImports> RunAssetCheck(std::vector<std::string> argv,
+                                          std::chrono::seconds timeout,
+                                          const std::filesystem::path& importsFile) {
+  struct RemoveFile {
+    const std::filesystem::path& path;
+    ~RemoveFile() {
+      std::error_code ignored;
+      std::filesystem::remove(path, ignored);
+    }
+  } removeImports{importsFile};
+  PB_RETURN_IF_ERROR(CheckInChild(std::move(argv), timeout));
+  absl::StatusOr<std::string> bytes = ReadWholeFile(importsFile);
+  if (!bytes.ok()) {
+    return absl::InternalError(
+        absl::StrCat("asset check: the checker reported success without its mesh imports (",
+                     bytes.status().message(), ")"));
+  }
+  return MeshImports::Parse(*bytes);
+}
+
+namespace {
+
+absl::Status CheckInChild(std::vector<std::string> argv, std::chrono::seconds timeout) {
   const auto log = Logger("assets");
   absl::StatusOr<ChildExit> child = RunChild(std::move(argv), timeout, "asset check");
   if (!child.ok()) return child.status();
@@ -138,6 +165,8 @@ absl::Status RunAssetCheck(std::vector<std::string> argv, std::chrono::seconds t
   return parsed.status;
 }
 
+}  // namespace
+
 void ApplyAssetCheckLimits(const AssetCheckLimits& limits) {
   const auto apply = [](int resource, int64_t value, rlim_t hard, const char* name) {
     if (value <= 0) return;
@@ -145,12 +174,20 @@ void ApplyAssetCheckLimits(const AssetCheckLimits& limits) {
     if (::setrlimit(resource, &limit) != 0)
       Logger("assets")->warn("setrlimit {}: {}", name, std::strerror(errno));
   };
+#ifdef __SANITIZE_ADDRESS__
+  // AddressSanitizer's shadow memory is a writable private mapping of terabytes, which
+  // RLIMIT_DATA counts: under any limit every later mapping fails and the child dies at its first
+  // allocation. A sanitizer build is a test build; the limit is tested in the plain one.
+  if (limits.memoryBytes > 0)
+    Logger("assets")->info("the memory limit is not applied under AddressSanitizer");
+#else
   if (limits.memoryBytes > 0) {
     std::snprintf(gOutOfMemoryLine, sizeof gOutOfMemoryLine, "memory %lld\n",
                   static_cast<long long>(limits.memoryBytes));
     std::set_new_handler(OnOutOfMemory);
   }
   apply(RLIMIT_DATA, limits.memoryBytes, rlim_t(limits.memoryBytes), "RLIMIT_DATA");
+#endif
   // A soft CPU limit sends SIGXCPU, the hard one a second later SIGKILL.
   apply(RLIMIT_CPU, limits.cpuSeconds, rlim_t(limits.cpuSeconds + 1), "RLIMIT_CPU");
 }
@@ -161,18 +198,22 @@ int ReportAssetCheck(const absl::Status& status) {
   return 0;
 }
 
-int ReportJobAssets(const v1::JobSpec& spec, const AssetSource& assets, const JobLimits& limits) {
+int ReportJobAssets(const v1::JobSpec& spec, const AssetSource& assets, const JobLimits& limits,
+                    const std::filesystem::path& importsFile) {
   const AnnouncingAssetSource announcing(assets);
-  return ReportAssetCheck(BuildBakeJob(spec, announcing, limits).status());
+  MeshImports imports;
+  absl::Status built = BuildBakeJob(spec, announcing, limits, {&imports, nullptr}).status();
+  if (built.ok()) built = WriteFileAtomic(importsFile, imports.Serialize());
+  return ReportAssetCheck(built);
 }
 
-int RunLocalAssetCheckChild(const std::string& jobPath, const JobLimits& limits,
-                            const AssetCheckLimits& resources) {
+int RunLocalAssetCheckChild(const std::string& jobPath, const std::filesystem::path& importsFile,
+                            const JobLimits& limits, const AssetCheckLimits& resources) {
   ApplyAssetCheckLimits(resources);
   absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
   if (!spec.ok()) return ReportAssetCheck(spec.status());
   const LocalAssetSource files(JobFileDir(jobPath), "", limits.maxAssetBytes);
-  return ReportJobAssets(*spec, files, limits);
+  return ReportJobAssets(*spec, files, limits, importsFile);
 }
 
 }  // namespace probebake::runtime

@@ -6,7 +6,6 @@
 
 #include "absl/strings/str_cat.h"
 #include "probebake/base/status.h"
-#include "probebake/job/digest.h"
 #include "runtime/asset_check.h"
 #include "runtime/files.h"
 #include "server/bake_backend.h"
@@ -27,27 +26,13 @@ AssetCheck::AssetCheck(std::vector<std::string> argv, std::filesystem::path tmpD
                        std::chrono::seconds timeout)
     : argv_(std::move(argv)), tmpDir_(std::move(tmpDir)), timeout_(timeout) {}
 
-absl::Status AssetCheck::Check(const v1::JobSpec& spec) const {
-  if (!HasAssetBlobs(spec)) return absl::OkStatus();
-  const std::string specBytes = spec.SerializeAsString();
-  const std::string key = Sha256Hex(specBytes);
-  {
-    std::lock_guard lock(mutex_);
-    if (passed_.count(key)) return absl::OkStatus();
-  }
-  absl::Status status = CheckInChild(specBytes);
-  if (status.ok()) {
-    std::lock_guard lock(mutex_);
-    passed_.insert(key);
-  }
-  return status;
-}
-
-absl::Status AssetCheck::CheckInChild(const std::string& specBytes) const {
-  // A name no other check uses at the same time.
-  const std::filesystem::path specFile =
-      tmpDir_ / absl::StrCat("asset-check-", getpid(), "-", std::random_device{}(), ".pb");
-  PB_RETURN_IF_ERROR(runtime::WriteFileAtomic(specFile, specBytes));
+absl::StatusOr<MeshImports> AssetCheck::Import(const v1::JobSpec& spec) const {
+  if (!HasAssetBlobs(spec)) return MeshImports();
+  // Names no other check uses at the same time.
+  const std::string stem = absl::StrCat("asset-check-", getpid(), "-", std::random_device{}());
+  const std::filesystem::path specFile = tmpDir_ / (stem + ".pb");
+  const std::filesystem::path importsFile = tmpDir_ / (stem + ".imports");
+  PB_RETURN_IF_ERROR(runtime::WriteFileAtomic(specFile, spec.SerializeAsString()));
   struct RemoveFile {
     std::filesystem::path path;
     ~RemoveFile() {
@@ -58,12 +43,15 @@ absl::Status AssetCheck::CheckInChild(const std::string& specBytes) const {
   std::vector<std::string> args = argv_;
   args.push_back("--check-job-assets");
   args.push_back(specFile.string());
-  return runtime::RunAssetCheck(std::move(args), timeout_);
+  args.push_back("--check-imports-out");
+  args.push_back(importsFile.string());
+  return runtime::RunAssetCheck(std::move(args), timeout_, importsFile);
 }
 
-int RunAssetCheckChild(const std::filesystem::path& specFile, const std::filesystem::path& dataDir,
-                       int64_t maxBlobBytes, const JobLimits& limits,
-                       const runtime::AssetCheckLimits& resources) {
+int RunAssetCheckChild(const std::filesystem::path& specFile,
+                       const std::filesystem::path& importsFile,
+                       const std::filesystem::path& dataDir, int64_t maxBlobBytes,
+                       const JobLimits& limits, const runtime::AssetCheckLimits& resources) {
   runtime::ApplyAssetCheckLimits(resources);
   absl::StatusOr<std::string> bytes = runtime::ReadWholeFile(specFile);
   if (!bytes.ok()) return runtime::ReportAssetCheck(absl::InternalError(bytes.status().message()));
@@ -76,7 +64,7 @@ int RunAssetCheckChild(const std::filesystem::path& specFile, const std::filesys
       BlobStore::OpenForReading(dataDir, maxBlobBytes);
   if (!blobs.ok()) return runtime::ReportAssetCheck(blobs.status());
   const BlobAssetSource store(blobs->get(), limits.maxAssetBytes);
-  return runtime::ReportJobAssets(spec, store, limits);
+  return runtime::ReportJobAssets(spec, store, limits, importsFile);
 }
 
 }  // namespace probebake::server

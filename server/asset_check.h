@@ -1,14 +1,13 @@
-// The server's asset check (runtime/asset_check.h): before the server builds a job in process, a
-// child (`probebake-server <the server's own flags> --check-job-assets SPEC_FILE`) opens the blob
-// store, builds the job exactly as the server would (same limits, same code) and reports; a file
-// that crashes or hangs the importer then costs the child, not the server.
+// The server's asset check (runtime/asset_check.h): before the server builds a job, a child
+// (`probebake-server <the server's own flags> --check-job-assets SPEC_FILE --check-imports-out
+// FILE`) opens the blob store, builds the job exactly as the server would (same limits, same
+// code), hands its mesh imports back and reports; the server builds the job from those imports.
+// A file that crashes or hangs the importer costs the child, and the server never imports one.
 #pragma once
 
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
-#include <mutex>
-#include <set>
 #include <string>
 #include <vector>
 
@@ -26,28 +25,27 @@ class AssetCheck {
   AssetCheck(std::vector<std::string> argv, std::filesystem::path tmpDir,
              std::chrono::seconds timeout);
 
-  // OK when `spec` has no mesh or map blob, or the child built it; the child's error otherwise,
-  // or INVALID_ARGUMENT "<field>: ..." when importing crashed or ran past the time limit.
-  // INTERNAL when the child could not be run at all. A spec that passed once passes again without
-  // a child (a job is built when it is created and again when it starts). Thread-safe.
-  absl::Status Check(const v1::JobSpec& spec) const;
+  // The child's mesh imports of `spec` (none, without a child, when `spec` has no mesh or map
+  // blob); the child's error otherwise, or INVALID_ARGUMENT "<field>: ..." when importing crashed
+  // or ran past a limit. INTERNAL when the child could not be run at all. Every call runs a child
+  // (a job is built when it is created and again when it starts, each time from a child's
+  // imports: holding them in between would hold every queued job's decoded textures).
+  // Thread-safe.
+  absl::StatusOr<MeshImports> Import(const v1::JobSpec& spec) const;
 
  private:
-  absl::Status CheckInChild(const std::string& specBytes) const;
-
   std::vector<std::string> argv_;
   std::filesystem::path tmpDir_;
   std::chrono::seconds timeout_;
-  mutable std::mutex mutex_;
-  mutable std::set<std::string> passed_;  // SHA-256 of the specs that passed
 };
 
 // The server's child: applies `resources`, reads the JobSpec (binary protobuf) at `specFile`,
-// builds it over the blob store under `dataDir` with `limits`, and writes the report
-// (runtime/asset_check.h) to stdout. Returns the process exit code (0 when a report was written,
-// whatever its status).
-int RunAssetCheckChild(const std::filesystem::path& specFile, const std::filesystem::path& dataDir,
-                       int64_t maxBlobBytes, const JobLimits& limits,
-                       const runtime::AssetCheckLimits& resources);
+// builds it over the blob store under `dataDir` with `limits`, writes its mesh imports to
+// `importsFile` and the report (runtime/asset_check.h) to stdout. Returns the process exit code
+// (0 when a report was written, whatever its status).
+int RunAssetCheckChild(const std::filesystem::path& specFile,
+                       const std::filesystem::path& importsFile,
+                       const std::filesystem::path& dataDir, int64_t maxBlobBytes,
+                       const JobLimits& limits, const runtime::AssetCheckLimits& resources);
 
 }  // namespace probebake::server

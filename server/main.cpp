@@ -22,8 +22,10 @@
 #include <CLI/CLI.hpp>
 
 #include "probebake/base/log.h"
+#include "probebake/job/job.h"
 #include "runtime/files.h"
 #include "server/asset_check.h"
+#include "server/bake_backend.h"
 #include "server/blob_store.h"
 #include "server/server.h"
 #include "server/slurm_backend.h"
@@ -116,8 +118,9 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   // The child side of that check (asset_check.h); not for people.
-  std::string checkJobAssets;
+  std::string checkJobAssets, checkImportsOut;
   app.add_option("--check-job-assets", checkJobAssets)->group("");
+  app.add_option("--check-imports-out", checkImportsOut)->group("");
   app.add_option("--checkpoint-interval", options.checkpointIntervalSeconds,
                  "Seconds between checkpoints of a running bake")
       ->check(CLI::PositiveNumber)
@@ -187,8 +190,8 @@ int main(int argc, char** argv) {
     // catches a child whose threads burn more CPU than wall time).
     const probebake::runtime::AssetCheckLimits resources{assetCheckMemoryMb << 20,
                                                          int64_t(assetCheckSeconds)};
-    return srv::RunAssetCheckChild(checkJobAssets, dataDir, options.maxBlobBytes, options.limits,
-                                   resources);
+    return srv::RunAssetCheckChild(checkJobAssets, checkImportsOut, dataDir, options.maxBlobBytes,
+                                   options.limits, resources);
   }
   probebake::SetLogLevel(spdlog::level::from_str(logLevel));
   options.dataDir = dataDir;
@@ -220,7 +223,8 @@ int main(int argc, char** argv) {
   sigaddset(&signals, SIGINT);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
 
-  // Every job's assets are imported in a child first: this executable, with these flags.
+  // Every job's mesh files are imported in a child, this executable with these flags, and the job
+  // is built from the child's imports (server/asset_check.h).
   std::vector<std::string> self(argv, argv + argc);
   self[0] = "/proc/self/exe";
   const auto checkTimeout = std::chrono::seconds(assetCheckSeconds);
@@ -232,10 +236,14 @@ int main(int argc, char** argv) {
     if (!made.ok()) return made;
     auto check =
         std::make_shared<const srv::AssetCheck>(self, context.blobs->tmpDir(), checkTimeout);
-    made->build = [check, build = made->build](
+    // Both backends build as ProductionBackend does (BuildBakeJob over the blob store); this
+    // build differs only in taking the meshes from the child.
+    made->build = [check, blobs = context.blobs, limits = context.limits](
                       const probebake::v1::JobSpec& spec) -> absl::StatusOr<probebake::BakeJob> {
-      if (absl::Status checked = check->Check(spec); !checked.ok()) return checked;
-      return build(spec);
+      absl::StatusOr<probebake::MeshImports> imports = check->Import(spec);
+      if (!imports.ok()) return imports.status();
+      const srv::BlobAssetSource assets(blobs, limits.maxAssetBytes);
+      return probebake::BuildBakeJob(spec, assets, limits, {nullptr, &*imports});
     };
     return made;
   };

@@ -12,6 +12,7 @@
 #include "cube_map.h"
 #include "env_map.h"
 #include "errors.h"
+#include "imported_mesh_codec.h"
 #include "mesh_import.h"
 #include "probebake/base/check.h"
 #include "probebake/base/log.h"
@@ -21,6 +22,7 @@
 #include "probebake/job/file_refs.h"
 #include "probebake/job/job.h"
 #include "probebake/job/job_json.h"
+#include "probebake/job/mesh_imports.h"
 #include "probebake/job/validate.h"
 #include "text.h"
 
@@ -120,12 +122,15 @@ absl::Status TransformLight(const Transform& t, const std::string& path, Light* 
 class MeshBuilder {
  public:
   // `jobLights`: the job's own lights, added after the meshes'.
-  MeshBuilder(const AssetSource& assets, const JobLimits& limits, int64_t jobLights)
-      : assets_(assets), limits_(limits), jobLights_(jobLights) {}
+  MeshBuilder(const AssetSource& assets, const JobLimits& limits, int64_t jobLights,
+              const MeshImportHandoff& handoff)
+      : assets_(assets), limits_(limits), jobLights_(jobLights), handoff_(handoff) {}
 
-  // `material`: the index of the job's material for the mesh; -1 uses the file's own materials.
-  absl::Status Add(const v1::Mesh& spec, const std::string& path, int64_t material,
-                   v1::Mesh* canonical, Scene* scene) {
+  // Mesh `index` of the job. `material`: the index of the job's material for the mesh; -1 uses
+  // the file's own materials.
+  absl::Status Add(const v1::Mesh& spec, int meshIndex, int64_t material, v1::Mesh* canonical,
+                   Scene* scene) {
+    const std::string path = Index("scene.meshes", meshIndex);
     job_internal::ImportedMesh raw;
     if (!spec.file().empty() || spec.has_blob()) {
       PB_ASSIGN_OR_RETURN(const std::string bytes,
@@ -155,15 +160,32 @@ class MeshBuilder {
         }
         return referenced;
       };
-      PB_ASSIGN_OR_RETURN(
-          raw, job_internal::ImportMesh(bytes, format, name, fieldPath, triangles_,
-                                        limits_.maxTriangles, readReference,
-                                        /*fileMaterials=*/material < 0, limits_.maxTexturePixels));
+      const job_internal::ImportBinding binding{meshIndex, Sha256Hex(bytes), format, material < 0};
+      if (handoff_.use != nullptr) {
+        const std::string* entry = handoff_.use->Find(meshIndex);
+        if (entry == nullptr) {
+          return absl::InternalError("mesh imports: no entry for " + path +
+                                     " (the asset check imported another job)");
+        }
+        PB_ASSIGN_OR_RETURN(raw, job_internal::DecodeImportedMesh(*entry, binding));
+      } else {
+        PB_ASSIGN_OR_RETURN(raw, job_internal::ImportMesh(
+                                     bytes, format, name, fieldPath, triangles_,
+                                     limits_.maxTriangles, readReference,
+                                     /*fileMaterials=*/material < 0, limits_.maxTexturePixels));
+        for (const auto& [modelPath, referenced] : raw.references)
+          raw.referenceDigests[modelPath] = {Sha256Hex(referenced), int64_t(referenced.size())};
+        raw.references.clear();
+        if (handoff_.record != nullptr)
+          handoff_.record->Put(meshIndex, job_internal::EncodeImportedMesh(binding, raw));
+      }
       // The job digest covers what the import read, whoever supplied it.
       canonical->clear_references();
-      for (const auto& [modelPath, referenced] : raw.references)
-        (*canonical->mutable_references())[modelPath] = DigestOf(referenced);
-      raw.references.clear();
+      for (const auto& [modelPath, digest] : raw.referenceDigests) {
+        v1::Digest& d = (*canonical->mutable_references())[modelPath];
+        d.set_hash(digest.sha256);
+        d.set_size_bytes(digest.sizeBytes);
+      }
       for (const std::string& extension : raw.ignoredExtensions)
         ignored_.push_back(path + ": " + extension);
     } else {
@@ -277,6 +299,7 @@ class MeshBuilder {
   const AssetSource& assets_;
   const JobLimits& limits_;
   int64_t jobLights_;
+  MeshImportHandoff handoff_;
   std::vector<std::string> ignored_;
 
  public:
@@ -547,6 +570,11 @@ absl::StatusOr<Environment> LoadEnvironment(const v1::Environment& spec, const A
 
 absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource& assets,
                                      const JobLimits& limits) {
+  return BuildBakeJob(spec, assets, limits, MeshImportHandoff());
+}
+
+absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource& assets,
+                                     const JobLimits& limits, const MeshImportHandoff& handoff) {
   PB_RETURN_IF_ERROR(ValidateJobSpec(spec, limits));
   BakeJob job;
   job.settings = ResolveSettings(spec.settings());
@@ -561,12 +589,11 @@ absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource&
     out.materials.push_back({m.name(), ToVec3(m.albedo()), ToVec3(m.emission())});
   }
 
-  MeshBuilder meshes(assets, limits, scene.lights_size());
+  MeshBuilder meshes(assets, limits, scene.lights_size(), handoff);
   for (int i = 0; i < scene.meshes_size(); ++i) {
     const v1::Mesh& m = scene.meshes(i);
     const int64_t material = m.material().empty() ? -1 : int64_t(materialIndex.at(m.material()));
-    PB_RETURN_IF_ERROR(
-        meshes.Add(m, Index("scene.meshes", i), material, canonical.mutable_meshes(i), &out));
+    PB_RETURN_IF_ERROR(meshes.Add(m, i, material, canonical.mutable_meshes(i), &out));
   }
   job.ignored = meshes.ignored();
   for (const v1::Light& l : scene.lights()) out.lights.push_back(BuildLight(l));
@@ -617,9 +644,14 @@ absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource&
 }
 
 absl::StatusOr<BakeJob> LoadBakeJob(const std::string& path, const JobLimits& limits) {
+  return LoadBakeJob(path, limits, MeshImportHandoff());
+}
+
+absl::StatusOr<BakeJob> LoadBakeJob(const std::string& path, const JobLimits& limits,
+                                    const MeshImportHandoff& handoff) {
   PB_ASSIGN_OR_RETURN(const v1::JobSpec spec, ReadJobFile(path));
   const LocalAssetSource assets(JobFileDir(path), "", limits.maxAssetBytes);
-  absl::StatusOr<BakeJob> job = BuildBakeJob(spec, assets, limits);
+  absl::StatusOr<BakeJob> job = BuildBakeJob(spec, assets, limits, handoff);
   if (!job.ok()) return job_internal::PrefixLines(job.status(), path);
   return job;
 }

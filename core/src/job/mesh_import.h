@@ -56,6 +56,13 @@ struct ImportedMesh {
   // (NormalizeModelPath) to its bytes: a glTF's external buffers and images, an OBJ's .mtl and
   // texture maps.
   std::map<std::string, std::string> references;
+  // The digests of those files by the same paths: what BuildBakeJob keeps of them, and all that a
+  // hand-over between processes carries (imported_mesh_codec.h).
+  struct FileDigest {
+    std::string sha256;  // Sha256Hex
+    int64_t sizeBytes = 0;
+  };
+  std::map<std::string, FileDigest> referenceDigests;
 };
 
 // The bytes of the file a model references, by the normalized path the model writes; an error

@@ -3,10 +3,10 @@
 //
 //   JobSpec --ValidateJobSpec--> assets from an AssetSource --> BakeJob
 //
-// Meshes are read with assimp from memory (OBJ, PLY, glTF 2.0 .gltf with embedded buffers, .glb):
-// polygons triangulated, points and lines ignored, every mesh of the file merged with its node
-// transforms applied, then the job's `transform`, all in double. The file's own materials are
-// ignored (the job mesh's `material` applies to every triangle); an OBJ's mtllib is not read.
+// Meshes are read with assimp from memory (OBJ, PLY, glTF 2.0 .gltf and .glb, referenced files
+// through `assets`): polygons triangulated, points and lines ignored, every mesh of the file merged
+// with its node transforms applied, then the job's `transform`, all in double. Without a job
+// `material`, the file's own materials, textures and lights apply (docs/job-format.md).
 // File vertex positions and node transforms carry the file's (assimp's) single precision; the job
 // transform and everything after it is double, so translating a scene by 1e4 changes no bit of the
 // relative geometry beyond the double rounding of the translation itself. Zero-area triangles are
