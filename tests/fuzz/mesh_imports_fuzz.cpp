@@ -16,12 +16,12 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   static const bool quiet = (probebake::SetLogLevel(spdlog::level::off), true);
   (void)quiet;
-  const absl::StatusOr<probebake::MeshImports> imports = probebake::MeshImports::Parse(
-      std::string_view(reinterpret_cast<const char*>(data), size));
+  const absl::StatusOr<probebake::MeshImports> imports =
+      probebake::MeshImports::Parse(std::string_view(reinterpret_cast<const char*>(data), size));
   if (!imports.ok()) return 0;
   for (int mesh = 0; mesh < 64; ++mesh) {
     const std::string* entry = imports->Find(mesh);
-    if (entry == nullptr) continue;
+    if (entry == nullptr || entry->size() < 8) continue;
     // The binding the entry states: after its 8-byte header, the mesh index, hash, format and
     // material choice.
     probebake::job_internal::ByteReader header(std::string_view(*entry).substr(8));

@@ -544,6 +544,20 @@ TEST(VdbIo, DeclaredLengthsPastTheFileAreRefusedBeforeOpenVdbReadsThem) {
   EXPECT_NE(vec.message().find("file metadata \"grid_min\" (vec3d) declares 13592 bytes, not 24"),
             absl::string_view::npos)
       << vec;
+  // A bool holding neither 0 nor 1: OpenVDB loads it as a bool (undefined behaviour; found by
+  // volume_read_fuzz under UBSan).
+  const size_t local = FindString(good, "is_saved_as_half_float");
+  const std::string boolPath = dir.File("bool.vdb");
+  std::filesystem::copy_file(good, boolPath);
+  {
+    std::fstream f(boolPath, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(std::streamoff(local + 4 + 22 + 4 + 4 + 4));
+    f.put(char(44));
+  }
+  const absl::Status flag = ReadProbeVolume(boolPath).status();
+  EXPECT_NE(flag.message().find("\"is_saved_as_half_float\" (bool) holds 44, not 0 or 1"),
+            absl::string_view::npos)
+      << flag;
   // And the untouched file still reads.
   EXPECT_TRUE(ReadProbeVolume(good).ok());
 }

@@ -155,7 +155,14 @@ std::string WalkMetadata(Walker& w, const std::string& what) {
       return named + " (" + type + ") declares " + std::to_string(declared) + " bytes, not " +
              std::to_string(valueBytes);
     }
-    if (type == kDelayedLoad && declared <= w.Left()) {
+    if (type == "bool" && declared <= w.Left()) {
+      // OpenVDB loads the byte as a bool: any value but 0 or 1 is undefined behaviour.
+      std::string value;
+      if (!w.Bytes(1, &value)) return named + "'s value is cut short";
+      if (uint8_t(value[0]) > 1) {
+        return named + " (bool) holds " + std::to_string(uint8_t(value[0])) + ", not 0 or 1";
+      }
+    } else if (type == kDelayedLoad && declared <= w.Left()) {
       std::string value;
       if (!w.Bytes(declared, &value)) return named + "'s value is cut short";
       if (std::string p = DelayedLoadProblem(value, w.Size(), named); !p.empty()) return p;
