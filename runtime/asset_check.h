@@ -9,7 +9,7 @@
 // and, when the job built, writes its mesh imports (probebake/job/mesh_imports.h) to the file its
 // parent named before it reports. The parent builds the job from those imports: the child is the
 // only process that runs an importer on a mesh file. (Environment maps are decoded again by the
-// parent, behind the header walks of docs/hardening.md; they have never crashed a decoder.)
+// parent, behind the header walks of docs/hardening.md.)
 // The parent turns a child killed by a signal, past the time limit or out of its memory limit into
 // INVALID_ARGUMENT naming the asset the child was reading; a clean report is returned as the
 // child's status.
@@ -18,10 +18,12 @@
 // allocate without end (one of assimp's known failures) is refused instead of exhausting the
 // machine: RLIMIT_DATA for memory (heap and anonymous mappings: what an importer allocates, and
 // not the shared libraries an address-space limit would also count), RLIMIT_CPU for CPU time.
-// An allocation past the limit makes the child report "memory <limit>" and exit.
+// An allocation past the limit makes the child report "memory <limit>" and exit. A build with
+// AddressSanitizer does not apply the memory limit: its shadow memory counts against RLIMIT_DATA.
 //
-// Children: a local bake runs `probebake check-assets JOB.json` (RunLocalAssetCheckChild, which
-// reads the job's files); the server runs itself over its blob store (server/asset_check.h).
+// Children: a local bake runs `probebake check-assets JOB.json --imports-out FILE`
+// (RunLocalAssetCheckChild, which reads the job's files); the server runs itself over its blob
+// store (server/asset_check.h).
 #pragma once
 
 #include <chrono>
