@@ -267,13 +267,18 @@ int RunBake(const std::string& jobPath, const std::string& out, int threads, boo
   // The job's files are imported by the check's child only; this process builds from its imports.
   std::optional<MeshImports> imports;
   if (absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
-      spec.ok() && !ListFileReferences(*spec).empty()) {
+      spec.ok() && (!ListFileReferences(*spec).empty() || !shardFlags.blobDir.empty())) {
     const std::filesystem::path importsFile =
         std::filesystem::temp_directory_path() /
         absl::StrCat("probebake-imports-", getpid(), "-", std::random_device{}());
-    absl::StatusOr<MeshImports> checked = runtime::RunAssetCheck(
-        {SelfExecutable(), "check-assets", jobPath, "--imports-out", importsFile.string()},
-        kAssetCheckTimeout, importsFile);
+    std::vector<std::string> argv = {SelfExecutable(), "check-assets", jobPath, "--imports-out",
+                                     importsFile.string()};
+    if (!shardFlags.blobDir.empty()) {
+      argv.push_back("--blob-dir");
+      argv.push_back(shardFlags.blobDir);
+    }
+    absl::StatusOr<MeshImports> checked =
+        runtime::RunAssetCheck(std::move(argv), kAssetCheckTimeout, importsFile);
     if (!checked.ok()) return Fail(checked.status(), jobPath);
     imports = std::move(*checked);
   }
@@ -839,6 +844,8 @@ int Main(int argc, char** argv) {
   checkAssets->add_option("job", jobPath)->required();
   std::string importsOut;
   checkAssets->add_option("--imports-out", importsOut)->required();
+  std::string checkBlobDir;
+  checkAssets->add_option("--blob-dir", checkBlobDir);
   CLI::App* inspect = app.add_subcommand("inspect", "Describe a probe volume file");
   inspect->add_option("volume", path, "Probe volume (.vdb, docs/volume-format.md)")->required();
   inspect->add_flag("--json", json, "One JSON object on stdout");
@@ -929,7 +936,7 @@ int Main(int argc, char** argv) {
 
   if (*checkAssets) {
     SetLogLevel(spdlog::level::warn);  // the bake that spawned it logs what matters
-    return runtime::RunLocalAssetCheckChild(jobPath, importsOut, JobLimits());
+    return runtime::RunLocalAssetCheckChild(jobPath, checkBlobDir, importsOut, JobLimits());
   }
   if (*bake) return RunBake(jobPath, out, threads, json, shardFlags);
   if (*plan) return RunPlan(jobPath, shardCount, threads, json);

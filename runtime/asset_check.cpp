@@ -207,12 +207,13 @@ int ReportJobAssets(const v1::JobSpec& spec, const AssetSource& assets, const Jo
   return ReportAssetCheck(built);
 }
 
-int RunLocalAssetCheckChild(const std::string& jobPath, const std::filesystem::path& importsFile,
-                            const JobLimits& limits, const AssetCheckLimits& resources) {
+int RunLocalAssetCheckChild(const std::string& jobPath, const std::string& blobDir,
+                            const std::filesystem::path& importsFile, const JobLimits& limits,
+                            const AssetCheckLimits& resources) {
   ApplyAssetCheckLimits(resources);
   absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
   if (!spec.ok()) return ReportAssetCheck(spec.status());
-  const LocalAssetSource files(JobFileDir(jobPath), "", limits.maxAssetBytes);
+  const LocalAssetSource files(JobFileDir(jobPath), blobDir, limits.maxAssetBytes);
   return ReportJobAssets(*spec, files, limits, importsFile);
 }
 

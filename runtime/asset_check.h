@@ -72,9 +72,11 @@ int ReportJobAssets(const v1::JobSpec& spec, const AssetSource& assets, const Jo
 int ReportAssetCheck(const absl::Status& status);
 
 // The local CLI's child: applies `resources`, reads the job file at `jobPath` and reports its
-// assets as a local bake reads them (the job's files), its imports to `importsFile`. Returns the
-// exit code (0 when a report was written).
-int RunLocalAssetCheckChild(const std::string& jobPath, const std::filesystem::path& importsFile,
-                            const JobLimits& limits, const AssetCheckLimits& resources = {});
+// assets as a local bake reads them (the job's files and, with `blobDir`, the blobs there: a
+// shard worker's), its imports to `importsFile`. Returns the exit code (0 when a report was
+// written).
+int RunLocalAssetCheckChild(const std::string& jobPath, const std::string& blobDir,
+                            const std::filesystem::path& importsFile, const JobLimits& limits,
+                            const AssetCheckLimits& resources = {});
 
 }  // namespace probebake::runtime
