@@ -5,6 +5,7 @@
 #include <type_traits>
 
 #include "absl/strings/str_cat.h"
+#include "probebake/base/byte_codec.h"
 #include "probebake/base/status.h"
 #include "probebake/job/digest.h"
 #include "runtime/files.h"
@@ -20,60 +21,8 @@ constexpr char kMagic03[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '3'};
 constexpr char kMagic02[8] = {'P', 'B', 'C', 'K', 'P', 'T', '0', '2'};
 constexpr size_t kHashHexBytes = 64;
 
-class Writer {
- public:
-  template <typename T>
-  void Pod(const T& v) {
-    static_assert(std::is_trivially_copyable_v<T>);
-    bytes_.append(reinterpret_cast<const char*>(&v), sizeof(T));
-  }
-  void String(const std::string& s) {
-    Pod(uint64_t(s.size()));
-    bytes_.append(s);
-  }
-  template <typename T>
-  void Vector(const std::vector<T>& v) {
-    Pod(uint64_t(v.size()));
-    bytes_.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
-  }
-  std::string& bytes() { return bytes_; }
-
- private:
-  std::string bytes_;
-};
-
-class Reader {
- public:
-  explicit Reader(std::string_view bytes) : bytes_(bytes) {}
-  template <typename T>
-  bool Pod(T* v) {
-    if (bytes_.size() < sizeof(T)) return false;
-    std::memcpy(v, bytes_.data(), sizeof(T));
-    bytes_.remove_prefix(sizeof(T));
-    return true;
-  }
-  bool String(std::string* s) {
-    uint64_t n;
-    if (!Pod(&n) || n > bytes_.size()) return false;
-    s->assign(bytes_.data(), size_t(n));
-    bytes_.remove_prefix(size_t(n));
-    return true;
-  }
-  template <typename T>
-  bool Vector(std::vector<T>* v) {
-    uint64_t n;
-    if (!Pod(&n) || n > bytes_.size() / sizeof(T)) return false;
-    v->resize(size_t(n));
-    // memcpy from or to an empty vector's null data() is undefined, even for 0 bytes.
-    if (n > 0) std::memcpy(v->data(), bytes_.data(), size_t(n) * sizeof(T));
-    bytes_.remove_prefix(size_t(n) * sizeof(T));
-    return true;
-  }
-  bool AtEnd() const { return bytes_.empty(); }
-
- private:
-  std::string_view bytes_;
-};
+using Writer = ByteWriter;
+using Reader = ByteReader;
 
 void WriteVolume(const ProbeVolume& v, Writer* w) {
   w->Pod(v.grid.origin);

@@ -8,8 +8,8 @@
 #include <cstdint>
 #include <string>
 
-#include "core/src/job/byte_codec.h"
 #include "core/src/job/imported_mesh_codec.h"
+#include "probebake/base/byte_codec.h"
 #include "probebake/base/log.h"
 #include "probebake/job/mesh_imports.h"
 
@@ -24,11 +24,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     if (entry == nullptr || entry->size() < 8) continue;
     // The binding the entry states: after its 8-byte header, the mesh index, hash, format and
     // material choice.
-    probebake::job_internal::ByteReader header(std::string_view(*entry).substr(8));
+    probebake::ByteReader header(std::string_view(*entry).substr(8));
     probebake::job_internal::ImportBinding binding;
     uint8_t fileMaterials = 0;
-    if (!header.Get(&binding.mesh) || !header.GetString(&binding.sha256) ||
-        !header.GetString(&binding.format) || !header.Get(&fileMaterials))
+    if (!header.Pod(&binding.mesh) || !header.String(&binding.sha256) ||
+        !header.String(&binding.format) || !header.Pod(&fileMaterials))
       continue;
     binding.fileMaterials = fileMaterials == 1;
     (void)probebake::job_internal::DecodeImportedMesh(*entry, binding);

@@ -4,7 +4,7 @@
 #include <memory>
 #include <type_traits>
 
-#include "byte_codec.h"
+#include "probebake/base/byte_codec.h"
 
 namespace probebake::job_internal {
 namespace {
@@ -17,17 +17,17 @@ constexpr uint64_t kMinMaterialBytes = 8 + 6 * 8 + 3 * (8 + 3) + 1 + 2 * 8 + 1;
 constexpr uint64_t kMinLightBytes = 1 + 2 * 3 * 8;
 
 void PutVec(ByteWriter& out, const Vec3d& v) {
-  out.Put(v.x);
-  out.Put(v.y);
-  out.Put(v.z);
+  out.Pod(v.x);
+  out.Pod(v.y);
+  out.Pod(v.z);
 }
 
 bool GetVec(ByteReader& in, Vec3d* v) {
-  return in.Get(&v->x) && in.Get(&v->y) && in.Get(&v->z);
+  return in.Pod(&v->x) && in.Pod(&v->y) && in.Pod(&v->z);
 }
 
 void PutLight(ByteWriter& out, const Light& light) {
-  out.Put(uint8_t(light.index()));
+  out.Pod(uint8_t(light.index()));
   if (const auto* p = std::get_if<PointLight>(&light)) {
     PutVec(out, p->position);
     PutVec(out, p->intensity);
@@ -35,41 +35,41 @@ void PutLight(ByteWriter& out, const Light& light) {
     PutVec(out, s->position);
     PutVec(out, s->direction);
     PutVec(out, s->intensity);
-    out.Put(s->cosInner);
-    out.Put(s->cosOuter);
+    out.Pod(s->cosInner);
+    out.Pod(s->cosOuter);
   } else if (const auto* d = std::get_if<DirectionalLight>(&light)) {
     PutVec(out, d->direction);
     PutVec(out, d->irradiance);
-    out.Put(d->cosHalfAngle);
+    out.Pod(d->cosHalfAngle);
   } else if (const auto* r = std::get_if<RectLight>(&light)) {
     PutVec(out, r->corner);
     PutVec(out, r->edge1);
     PutVec(out, r->edge2);
     PutVec(out, r->radiance);
-    out.Put(uint8_t(r->twoSided));
+    out.Pod(uint8_t(r->twoSided));
   } else if (const auto* k = std::get_if<DiskLight>(&light)) {
     PutVec(out, k->center);
     PutVec(out, k->normal);
-    out.Put(k->radius);
+    out.Pod(k->radius);
     PutVec(out, k->radiance);
-    out.Put(uint8_t(k->twoSided));
+    out.Pod(uint8_t(k->twoSided));
   } else if (const auto* e = std::get_if<SphereLight>(&light)) {
     PutVec(out, e->center);
-    out.Put(e->radius);
+    out.Pod(e->radius);
     PutVec(out, e->radiance);
   }
 }
 
 bool GetBool(ByteReader& in, bool* value) {
   uint8_t byte = 0;
-  if (!in.Get(&byte) || byte > 1) return false;
+  if (!in.Pod(&byte) || byte > 1) return false;
   *value = byte == 1;
   return true;
 }
 
 bool GetLight(ByteReader& in, Light* light) {
   uint8_t kind = 0;
-  if (!in.Get(&kind)) return false;
+  if (!in.Pod(&kind)) return false;
   switch (kind) {
     case 0: {
       PointLight p;
@@ -80,14 +80,14 @@ bool GetLight(ByteReader& in, Light* light) {
     case 1: {
       SpotLight s;
       if (!GetVec(in, &s.position) || !GetVec(in, &s.direction) || !GetVec(in, &s.intensity) ||
-          !in.Get(&s.cosInner) || !in.Get(&s.cosOuter))
+          !in.Pod(&s.cosInner) || !in.Pod(&s.cosOuter))
         return false;
       *light = s;
       return true;
     }
     case 2: {
       DirectionalLight d;
-      if (!GetVec(in, &d.direction) || !GetVec(in, &d.irradiance) || !in.Get(&d.cosHalfAngle))
+      if (!GetVec(in, &d.direction) || !GetVec(in, &d.irradiance) || !in.Pod(&d.cosHalfAngle))
         return false;
       *light = d;
       return true;
@@ -102,7 +102,7 @@ bool GetLight(ByteReader& in, Light* light) {
     }
     case 4: {
       DiskLight k;
-      if (!GetVec(in, &k.center) || !GetVec(in, &k.normal) || !in.Get(&k.radius) ||
+      if (!GetVec(in, &k.center) || !GetVec(in, &k.normal) || !in.Pod(&k.radius) ||
           !GetVec(in, &k.radiance) || !GetBool(in, &k.twoSided))
         return false;
       *light = k;
@@ -110,7 +110,7 @@ bool GetLight(ByteReader& in, Light* light) {
     }
     case 5: {
       SphereLight e;
-      if (!GetVec(in, &e.center) || !in.Get(&e.radius) || !GetVec(in, &e.radiance)) return false;
+      if (!GetVec(in, &e.center) || !in.Pod(&e.radius) || !GetVec(in, &e.radiance)) return false;
       *light = e;
       return true;
     }
@@ -140,61 +140,61 @@ std::vector<std::shared_ptr<const Texture>> TextureTable(
 
 std::string EncodeImportedMesh(const ImportBinding& binding, const ImportedMesh& mesh) {
   ByteWriter out;
-  for (char c : kMagic) out.Put(c);
-  out.Put(int32_t(binding.mesh));
-  out.PutString(binding.sha256);
-  out.PutString(binding.format);
-  out.Put(uint8_t(binding.fileMaterials));
+  out.bytes().append(kMagic);
+  out.Pod(int32_t(binding.mesh));
+  out.String(binding.sha256);
+  out.String(binding.format);
+  out.Pod(uint8_t(binding.fileMaterials));
 
-  out.Put(uint64_t(mesh.positions.size()));
+  out.Pod(uint64_t(mesh.positions.size()));
   for (const Vec3d& p : mesh.positions) PutVec(out, p);
-  out.PutVector(mesh.indices);
-  out.PutVector(mesh.triangleMaterials);
+  out.Vector(mesh.indices);
+  out.Vector(mesh.triangleMaterials);
 
   const std::vector<std::shared_ptr<const Texture>> textures = TextureTable(mesh.materials);
   std::map<const Texture*, int64_t> textureIndex;
-  out.Put(uint64_t(textures.size()));
+  out.Pod(uint64_t(textures.size()));
   for (const auto& texture : textures) {
     textureIndex.emplace(texture.get(), int64_t(textureIndex.size()));
-    out.PutString(texture->name);
-    out.Put(int32_t(texture->width));
-    out.Put(int32_t(texture->height));
-    out.Put(uint8_t(texture->hasAlpha));
-    out.PutVector(texture->rgba);
+    out.String(texture->name);
+    out.Pod(int32_t(texture->width));
+    out.Pod(int32_t(texture->height));
+    out.Pod(uint8_t(texture->hasAlpha));
+    out.Vector(texture->rgba);
   }
-  out.Put(uint64_t(mesh.materials.size()));
+  out.Pod(uint64_t(mesh.materials.size()));
   for (const FileMaterial& file : mesh.materials) {
     const Material& m = file.material;
-    out.PutString(m.name);
+    out.String(m.name);
     PutVec(out, m.albedo);
     PutVec(out, m.emission);
     for (const TextureMap* map : {&m.albedoMap, &m.emissionMap, &m.coverageMap}) {
-      out.Put(map->image ? textureIndex.at(map->image.get()) : int64_t(-1));
-      out.Put(uint8_t(map->wrapX));
-      out.Put(uint8_t(map->wrapY));
-      out.Put(uint8_t(map->srgb));
+      out.Pod(map->image ? textureIndex.at(map->image.get()) : int64_t(-1));
+      out.Pod(uint8_t(map->wrapX));
+      out.Pod(uint8_t(map->wrapY));
+      out.Pod(uint8_t(map->srgb));
     }
-    out.Put(uint8_t(m.vertexColors));
-    out.Put(m.coverage);
-    out.Put(m.alphaCutoff);
-    out.Put(uint8_t(m.doubleSided));
+    out.Pod(uint8_t(m.vertexColors));
+    out.Pod(m.coverage);
+    out.Pod(m.alphaCutoff);
+    out.Pod(uint8_t(m.doubleSided));
   }
-  out.PutVector(mesh.albedoUv);
-  out.PutVector(mesh.emissionUv);
-  out.PutVector(mesh.coverageUv);
-  out.PutVector(mesh.colors);
+  out.Vector(mesh.albedoUv);
+  out.Vector(mesh.emissionUv);
+  out.Vector(mesh.coverageUv);
+  out.Vector(mesh.colors);
 
-  out.Put(uint64_t(mesh.lights.size()));
+  out.Pod(uint64_t(mesh.lights.size()));
   for (const Light& light : mesh.lights) PutLight(out, light);
-  out.Put(uint64_t(mesh.ignoredExtensions.size()));
-  for (const std::string& extension : mesh.ignoredExtensions) out.PutString(extension);
-  out.Put(uint64_t(mesh.referenceDigests.size()));
+  out.Pod(uint64_t(mesh.ignoredExtensions.size()));
+  for (const std::string& extension : mesh.ignoredExtensions) out.String(extension);
+  out.Pod(uint64_t(mesh.referenceDigests.size()));
   for (const auto& [path, digest] : mesh.referenceDigests) {
-    out.PutString(path);
-    out.PutString(digest.sha256);
-    out.Put(digest.sizeBytes);
+    out.String(path);
+    out.String(digest.sha256);
+    out.Pod(digest.sizeBytes);
   }
-  return out.Take();
+  return std::move(out.bytes());
 }
 
 absl::StatusOr<ImportedMesh> DecodeImportedMesh(std::string_view entry,
@@ -207,7 +207,7 @@ absl::StatusOr<ImportedMesh> DecodeImportedMesh(std::string_view entry,
   if (entry.substr(0, kMagic.size()) != kMagic) return damaged("no entry header");
   ByteReader in(entry.substr(kMagic.size()));
   ImportBinding bound;
-  if (!in.Get(&bound.mesh) || !in.GetString(&bound.sha256) || !in.GetString(&bound.format) ||
+  if (!in.Pod(&bound.mesh) || !in.String(&bound.sha256) || !in.String(&bound.format) ||
       !GetBool(in, &bound.fileMaterials))
     return damaged("its binding");
   if (bound.mesh != binding.mesh || bound.sha256 != binding.sha256 ||
@@ -219,23 +219,22 @@ absl::StatusOr<ImportedMesh> DecodeImportedMesh(std::string_view entry,
 
   ImportedMesh mesh;
   uint64_t count = 0;
-  if (!in.GetCount(3 * sizeof(double), &count)) return damaged("positions");
+  if (!in.Count(3 * sizeof(double), &count)) return damaged("positions");
   mesh.positions.resize(size_t(count));
   for (Vec3d& p : mesh.positions)
     if (!GetVec(in, &p)) return damaged("positions");
-  if (!in.GetVector(&mesh.indices) || !in.GetVector(&mesh.triangleMaterials))
-    return damaged("triangles");
+  if (!in.Vector(&mesh.indices) || !in.Vector(&mesh.triangleMaterials)) return damaged("triangles");
   if (mesh.indices.size() % 3 != 0) return damaged("an index count not a multiple of 3");
   for (uint32_t index : mesh.indices)
     if (index >= mesh.positions.size()) return damaged("an index past the vertices");
 
   std::vector<std::shared_ptr<const Texture>> textures;
-  if (!in.GetCount(kMinTextureBytes, &count)) return damaged("the texture count");
+  if (!in.Count(kMinTextureBytes, &count)) return damaged("the texture count");
   for (uint64_t k = 0; k < count; ++k) {
     auto texture = std::make_shared<Texture>();
     int32_t width = 0, height = 0;
-    if (!in.GetString(&texture->name) || !in.Get(&width) || !in.Get(&height) ||
-        !GetBool(in, &texture->hasAlpha) || !in.GetVector(&texture->rgba))
+    if (!in.String(&texture->name) || !in.Pod(&width) || !in.Pod(&height) ||
+        !GetBool(in, &texture->hasAlpha) || !in.Vector(&texture->rgba))
       return damaged("a texture");
     if (width <= 0 || height <= 0 || texture->rgba.size() != 4 * size_t(width) * size_t(height))
       return damaged("a texture's size");
@@ -243,16 +242,16 @@ absl::StatusOr<ImportedMesh> DecodeImportedMesh(std::string_view entry,
     texture->height = height;
     textures.push_back(std::move(texture));
   }
-  if (!in.GetCount(kMinMaterialBytes, &count)) return damaged("the material count");
+  if (!in.Count(kMinMaterialBytes, &count)) return damaged("the material count");
   mesh.materials.resize(size_t(count));
   for (FileMaterial& file : mesh.materials) {
     Material& m = file.material;
-    if (!in.GetString(&m.name) || !GetVec(in, &m.albedo) || !GetVec(in, &m.emission))
+    if (!in.String(&m.name) || !GetVec(in, &m.albedo) || !GetVec(in, &m.emission))
       return damaged("a material");
     for (TextureMap* map : {&m.albedoMap, &m.emissionMap, &m.coverageMap}) {
       int64_t texture = 0;
       uint8_t wrapX = 0, wrapY = 0;
-      if (!in.Get(&texture) || !in.Get(&wrapX) || !in.Get(&wrapY) || !GetBool(in, &map->srgb))
+      if (!in.Pod(&texture) || !in.Pod(&wrapX) || !in.Pod(&wrapY) || !GetBool(in, &map->srgb))
         return damaged("a material's map");
       if (texture < -1 || texture >= int64_t(textures.size()) ||
           wrapX > uint8_t(TextureWrap::kMirror) || wrapY > uint8_t(TextureWrap::kMirror))
@@ -261,7 +260,7 @@ absl::StatusOr<ImportedMesh> DecodeImportedMesh(std::string_view entry,
       map->wrapX = TextureWrap(wrapX);
       map->wrapY = TextureWrap(wrapY);
     }
-    if (!GetBool(in, &m.vertexColors) || !in.Get(&m.coverage) || !in.Get(&m.alphaCutoff) ||
+    if (!GetBool(in, &m.vertexColors) || !in.Pod(&m.coverage) || !in.Pod(&m.alphaCutoff) ||
         !GetBool(in, &m.doubleSided))
       return damaged("a material");
   }
@@ -272,27 +271,27 @@ absl::StatusOr<ImportedMesh> DecodeImportedMesh(std::string_view entry,
   for (uint32_t material : mesh.triangleMaterials)
     if (material >= mesh.materials.size()) return damaged("a triangle's material");
 
-  if (!in.GetVector(&mesh.albedoUv) || !in.GetVector(&mesh.emissionUv) ||
-      !in.GetVector(&mesh.coverageUv) || !in.GetVector(&mesh.colors))
+  if (!in.Vector(&mesh.albedoUv) || !in.Vector(&mesh.emissionUv) || !in.Vector(&mesh.coverageUv) ||
+      !in.Vector(&mesh.colors))
     return damaged("the per-vertex values");
   for (size_t size :
        {mesh.albedoUv.size(), mesh.emissionUv.size(), mesh.coverageUv.size(), mesh.colors.size()}) {
     if (size != 0 && size != mesh.positions.size()) return damaged("a per-vertex array's size");
   }
 
-  if (!in.GetCount(kMinLightBytes, &count)) return damaged("the light count");
+  if (!in.Count(kMinLightBytes, &count)) return damaged("the light count");
   mesh.lights.resize(size_t(count));
   for (Light& light : mesh.lights)
     if (!GetLight(in, &light)) return damaged("a light");
-  if (!in.GetCount(sizeof(uint64_t), &count)) return damaged("the ignored extensions");
+  if (!in.Count(sizeof(uint64_t), &count)) return damaged("the ignored extensions");
   mesh.ignoredExtensions.resize(size_t(count));
   for (std::string& extension : mesh.ignoredExtensions)
-    if (!in.GetString(&extension)) return damaged("the ignored extensions");
-  if (!in.GetCount(3 * sizeof(uint64_t), &count)) return damaged("the referenced files");
+    if (!in.String(&extension)) return damaged("the ignored extensions");
+  if (!in.Count(3 * sizeof(uint64_t), &count)) return damaged("the referenced files");
   for (uint64_t k = 0; k < count; ++k) {
     std::string path;
     ImportedMesh::FileDigest digest;
-    if (!in.GetString(&path) || !in.GetString(&digest.sha256) || !in.Get(&digest.sizeBytes))
+    if (!in.String(&path) || !in.String(&digest.sha256) || !in.Pod(&digest.sizeBytes))
       return damaged("the referenced files");
     mesh.referenceDigests.emplace(std::move(path), std::move(digest));
   }

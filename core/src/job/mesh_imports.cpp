@@ -1,6 +1,6 @@
 #include "probebake/job/mesh_imports.h"
 
-#include "byte_codec.h"
+#include "probebake/base/byte_codec.h"
 
 namespace probebake {
 namespace {
@@ -19,29 +19,29 @@ void MeshImports::Put(int mesh, std::string entry) {
 }
 
 std::string MeshImports::Serialize() const {
-  job_internal::ByteWriter out;
-  for (char c : kMagic) out.Put(c);
-  out.Put(uint64_t(entries_.size()));
+  ByteWriter out;
+  out.bytes().append(kMagic);
+  out.Pod(uint64_t(entries_.size()));
   for (const auto& [mesh, entry] : entries_) {
-    out.Put(int32_t(mesh));
-    out.PutString(entry);
+    out.Pod(int32_t(mesh));
+    out.String(entry);
   }
-  return out.Take();
+  return std::move(out.bytes());
 }
 
 absl::StatusOr<MeshImports> MeshImports::Parse(std::string_view bytes) {
   if (bytes.substr(0, kMagic.size()) != kMagic)
     return absl::InternalError("mesh imports: not a hand-over of mesh imports");
-  job_internal::ByteReader in(bytes.substr(kMagic.size()));
+  ByteReader in(bytes.substr(kMagic.size()));
   MeshImports imports;
   uint64_t count = 0;
   // An entry is at least its index and its length.
-  if (!in.GetCount(sizeof(int32_t) + sizeof(uint64_t), &count))
+  if (!in.Count(sizeof(int32_t) + sizeof(uint64_t), &count))
     return absl::InternalError("mesh imports: cut short in the entry count");
   for (uint64_t k = 0; k < count; ++k) {
     int32_t mesh = 0;
     std::string entry;
-    if (!in.Get(&mesh) || !in.GetString(&entry))
+    if (!in.Pod(&mesh) || !in.String(&entry))
       return absl::InternalError("mesh imports: cut short in entry " + std::to_string(k));
     if (mesh < 0 || imports.entries_.count(mesh))
       return absl::InternalError("mesh imports: entry " + std::to_string(k) +
