@@ -1,5 +1,8 @@
 #include "vdb_file_walk.h"
 
+#include "vdb_file_walker.h"
+#include "vdb_tree_walk.h"
+
 #include <cstdint>
 #include <cstring>
 #include <fstream>
@@ -11,66 +14,6 @@
 
 namespace probebake::volume_internal {
 namespace {
-
-// Little-endian fields and length-prefixed strings from a file whose size is known; every read
-// is checked against the bytes left.
-class Walker {
- public:
-  Walker(std::ifstream& in, uint64_t size) : in_(in), size_(size) {}
-
-  uint64_t At() const { return at_; }
-  uint64_t Left() const { return size_ - at_; }
-
-  bool Seek(uint64_t to) {
-    if (to > size_) return false;
-    in_.seekg(std::streamoff(to));
-    at_ = to;
-    return bool(in_);
-  }
-  uint64_t Size() const { return size_; }
-  bool Skip(uint64_t n) { return n <= Left() && Seek(at_ + n); }
-  bool Bytes(uint64_t n, std::string* out) {
-    if (n > Left()) return false;
-    out->resize(size_t(n));
-    if (n > 0 && !in_.read(out->data(), std::streamsize(n))) return false;
-    at_ += n;
-    return true;
-  }
-
-  template <typename T>
-  bool Read(T* value) {
-    unsigned char bytes[sizeof(T)];
-    if (Left() < sizeof(T) || !in_.read(reinterpret_cast<char*>(bytes), sizeof(T))) return false;
-    at_ += sizeof(T);
-    uint64_t v = 0;
-    for (size_t i = 0; i < sizeof(T); ++i) v |= uint64_t(bytes[i]) << (8 * i);
-    std::memcpy(value, &v, sizeof(T));  // little-endian host (x86-64, aarch64)
-    return true;
-  }
-
-  // A string as OpenVDB writes it: uint32 length, then the bytes. Strings longer than `keep`
-  // are skipped, not read (names this walk reports stay short).
-  std::string String(const std::string& what, std::string* out, size_t keep = 256) {
-    uint32_t length = 0;
-    if (!Read(&length)) return what + " is cut short";
-    if (length > Left()) {
-      return what + " declares " + std::to_string(length) + " bytes; " + std::to_string(Left()) +
-             " are left";
-    }
-    if (out != nullptr && length <= keep) {
-      out->resize(length);
-      if (length > 0 && !in_.read(out->data(), length)) return what + " is cut short";
-      at_ += length;
-      return "";
-    }
-    return Skip(length) ? "" : what + " is cut short";
-  }
-
- private:
-  std::ifstream& in_;
-  uint64_t size_;
-  uint64_t at_ = 0;
-};
 
 // OpenVDB's own per-grid metadata of leaf-buffer masks and sizes ("file_delayed_load"), which it
 // writes into every grid and reads by the counts inside it.
@@ -131,7 +74,7 @@ int64_t MetadataValueBytes(const std::string& type) {
 }
 
 // A MetaMap: uint32 count, then per entry a name, a type name and a uint32-sized value.
-std::string WalkMetadata(Walker& w, const std::string& what) {
+std::string WalkMetadata(FileWalker& w, const std::string& what) {
   uint32_t count = 0;
   if (!w.Read(&count)) return what + " is cut short";
   // Each entry takes at least 12 bytes (three lengths).
@@ -182,7 +125,7 @@ std::string VdbFileProblem(const std::string& path) {
   const std::streamoff end = in.tellg();
   if (end < 0) return "cannot tell its size";
   in.seekg(0);
-  Walker w(in, uint64_t(end));
+  FileWalker w(in, uint64_t(end));
 
   int64_t magic = 0;
   uint32_t version = 0, libraryMajor = 0, libraryMinor = 0;
@@ -192,11 +135,11 @@ std::string VdbFileProblem(const std::string& path) {
       !w.Read(&hasGridOffsets)) {
     return "its header is cut short";
   }
-  if (version < openvdb::OPENVDB_FILE_VERSION_FLOAT_FRUSTUM_BBOX) {
-    return "file format version " + std::to_string(version) + " is older than OpenVDB reads";
+  // Files older than OpenVDB 2.0 (2013) lay grid trees out differently; the tree walk follows
+  // the current layout only.
+  if (version < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION) {
+    return "file format version " + std::to_string(version) + " is older than this reader takes";
   }
-  if (version < openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION && !w.Skip(1))
-    return "its header is cut short";
   if (!w.Skip(36)) return "its header is cut short";  // the UUID, 36 ASCII characters
   if (!hasGridOffsets) return "it was written as a stream without grid offsets";
 
@@ -213,10 +156,16 @@ std::string VdbFileProblem(const std::string& path) {
     std::string name;
     if (std::string p = w.String(what + "'s name", &name); !p.empty()) return p;
     const std::string grid = name.empty() ? what : "grid \"" + name + "\"";
-    if (std::string p = w.String(grid + "'s type", nullptr); !p.empty()) return p;
-    if (version >= openvdb::OPENVDB_FILE_VERSION_GRID_INSTANCING) {
-      if (std::string p = w.String(grid + "'s instance parent", nullptr); !p.empty()) return p;
-    }
+    GridBody body;
+    body.what = grid;
+    if (std::string p = w.String(grid + "'s type", &body.type); !p.empty()) return p;
+    std::string parent;
+    if (std::string p =
+            w.String(grid + "'s instance parent", &parent, std::numeric_limits<size_t>::max());
+        !p.empty())
+      return p;
+    body.instance = !parent.empty();
+    if (std::string p = GridTypeProblem(body); !p.empty()) return p;
     int64_t gridPos = 0, blockPos = 0, endPos = 0;
     if (!w.Read(&gridPos) || !w.Read(&blockPos) || !w.Read(&endPos))
       return grid + "'s offsets are cut short";
@@ -228,11 +177,13 @@ std::string VdbFileProblem(const std::string& path) {
              ", " + std::to_string(endPos) + ") are not in order within the file's " +
              std::to_string(size) + " bytes";
     }
-    // The grid's own metadata, read when the grid is: compression flags, then a MetaMap.
-    if (!w.Seek(uint64_t(gridPos))) return grid + " is cut short";
-    if (version >= openvdb::OPENVDB_FILE_VERSION_NODE_MASK_COMPRESSION && !w.Skip(4))
+    // The grid as OpenVDB reads it: compression flags, a MetaMap, then its body.
+    body.blockPos = uint64_t(blockPos);
+    body.endPos = uint64_t(endPos);
+    if (!w.Seek(uint64_t(gridPos)) || !w.Read(&body.compression))
       return grid + "'s compression flags are cut short";
     if (std::string p = WalkMetadata(w, grid + "'s metadata"); !p.empty()) return p;
+    if (std::string p = WalkGridBody(w, body); !p.empty()) return p;
     if (!w.Seek(uint64_t(endPos))) return grid + " is cut short";
   }
   return "";
