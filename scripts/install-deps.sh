@@ -16,8 +16,9 @@ PACKAGES=(
   # tests and benchmarks
   libgtest-dev libbenchmark-dev
   # the viewer and engine exports (web/): node + npm bundle three.js at build time and run it in
-  # the three.js export test; headless chromium renders the viewer in its test
-  nodejs npm chromium
+  # the three.js export test; headless chromium renders the viewer in its test and runs the
+  # shader includes (the HLSL one compiled by glslang and cross-compiled by spirv-cross)
+  nodejs npm chromium glslang-tools spirv-cross
   # third-party models every importer path is tested against (tests/server/testmodels_test.cpp)
   assimp-testmodels
   # Python-side interop tests (Debian's interpreter: /usr/bin/python3)

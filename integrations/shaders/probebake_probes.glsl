@@ -1,29 +1,49 @@
 // probebake probe textures (`probebake export VOLUME --format textures`, docs/engines.md) sampled
-// in GLSL (ES 3.00 / 3.30 and later). Irradiance at a world point and normal: the 8 grid probes
-// around the point blended trilinearly, probes whose validity alpha is < 0.5 skipped and the
-// weights renormalised (the weights of the core's slices), each probe's irradiance
-// E(n) = sum_l A_l sum_m L_lm Y_lm(n) with probebake's SH basis (Condon-Shortley signs, +Z polar).
+// in GLSL (ES 3.00 / 3.30 and later) with the weights of probebake's reference sampler
+// (ProbeSampler, core/include/probebake/volume/probe_sampler.h): for a point x with unit normal n,
+// each of the 8 grid probes around x that holds light (alpha >= 0.5) weighs
+//   trilinear(x) * backface * visibility,
+// backface = ((dot(dir to the probe, n) + 1) / 2)^2 + 0.2 (the probe where it was baked: grid
+// point + offset), visibility = Chebyshev's bound from the probe's moments of 1/t, the smaller of
+// its values at x + n * bias and at x, weights below 0.2 crushed to w^3 / 0.2^2; the blend is
+// normalised. Without the offset texture probes sit at their grid points; without the visibility
+// atlas the weight is trilinear * backface. E(n) = sum_l A_l sum_m L_lm Y_lm(n) with probebake's
+// SH basis (Condon-Shortley signs, +Z polar).
 //
 // Points and normals are in probebake's frame (right-handed, Z up); map yours first, e.g. from
 // three.js: pb = vec3(p.x, -p.z, p.y); from Unity: pb = vec3(p.x, p.z, p.y).
-// Bind the eight textures with NEAREST filtering (texelFetch reads texels exactly) and set the
-// uniforms from the header: counts, origin, spacing, l2Scale. Texture uniforms are named "pb"
-// followed by the header's texture name.
+// Bind the textures with NEAREST filtering (texelFetch reads texels exactly) and set the uniforms
+// from the header: counts, origin, spacing, l2Scale, and pbHasOffsets / pbHasVisibility when the
+// header lists `offset_filled` / `visibility`. Texture uniforms are named "pb" followed by the
+// header's texture name. Declare float and sampler3D precision highp before including.
 #ifndef PROBEBAKE_PROBES_GLSL
 #define PROBEBAKE_PROBES_GLSL
 
-uniform highp sampler3D pbL0_validity;  // RGBA16F (L0.rgb, usable)
-uniform highp sampler3D pbL1_r;         // RGBA16F (c1, c2, c3, 0) of red
+uniform highp sampler3D pbL0_validity;    // RGBA16F (L0.rgb, usable)
+uniform highp sampler3D pbL1_r;           // RGBA16F (c1, c2, c3, 0) of red
 uniform highp sampler3D pbL1_g;
 uniform highp sampler3D pbL1_b;
-uniform highp sampler3D pbL2_0;        // RGBA8: c4..c8 of r, g, b, 4 per texel
+uniform highp sampler3D pbL2_0;           // RGBA8: c4..c8 of r, g, b, 4 per texel
 uniform highp sampler3D pbL2_1;
 uniform highp sampler3D pbL2_2;
 uniform highp sampler3D pbL2_3;
+uniform highp sampler3D pboffset_filled;  // RGBA16F (offset xyz in scene units, filled)
+uniform highp sampler3D pbvisibility;     // RGBA32F atlas 8nx x 8ny x nz: (mean 1/t, mean 1/t^2)
 uniform vec3 pbGridOrigin;
 uniform vec3 pbGridSpacing;
 uniform ivec3 pbGridCounts;
 uniform float pbL2Scale;
+uniform bool pbHasOffsets;     // the header lists offset_filled
+uniform bool pbHasVisibility;  // the header lists visibility
+
+// The normal bias as a fraction of the smallest spacing (the core's ProbeSamplerOptions default).
+#ifndef PB_NORMAL_BIAS
+#define PB_NORMAL_BIAS 0.01
+#endif
+const int pbVisSize = 8;        // octahedral texels per side of a probe's visibility map
+const float pbCrush = 0.2;      // DDGI's crushing threshold
+const float pbMinWeight = 1e-30;
+const float pbMinRelativeVariance = 1e-4;
 
 // The 9 RGB radiance coefficients of probe p.
 void pbProbeSh(ivec3 p, out vec3 c[9]) {
@@ -33,12 +53,12 @@ void pbProbeSh(ivec3 p, out vec3 c[9]) {
   c[1] = vec3(r.x, g.x, b.x);
   c[2] = vec3(r.y, g.y, b.y);
   c[3] = vec3(r.z, g.z, b.z);
-  // v = (q / 255 - 0.5) * 2 * l2Scale; texelFetch of RGBA8 gives q / 255.
+  // v = (q - 128) / 127 * l2Scale; texelFetch of RGBA8 gives q / 255.
   float l2[16];
   vec4 t0 = texelFetch(pbL2_0, p, 0), t1 = texelFetch(pbL2_1, p, 0),
        t2 = texelFetch(pbL2_2, p, 0), t3 = texelFetch(pbL2_3, p, 0);
   vec4 t[4] = vec4[4](t0, t1, t2, t3);
-  for (int i = 0; i < 15; i++) l2[i] = (t[i / 4][i % 4] - 0.5) * 2.0 * pbL2Scale;
+  for (int i = 0; i < 15; i++) l2[i] = (round(t[i / 4][i % 4] * 255.0) - 128.0) / 127.0 * pbL2Scale;
   for (int k = 0; k < 5; k++) c[4 + k] = vec3(l2[k], l2[5 + k], l2[10 + k]);
 }
 
@@ -52,26 +72,143 @@ vec3 pbShIrradiance(vec3 c[9], vec3 n) {
                0.946174696 * (z * z - 1.0 / 3.0) * c[6] + 0.546274215 * (x * x - y * y) * c[8]);
 }
 
-// Irradiance at world point p with unit normal n (probebake's frame); .w is the weight of the
-// valid probes found (0: none, .rgb is then 0).
-vec4 pbIrradiance(vec3 p, vec3 n) {
-  vec3 g = clamp((p - pbGridOrigin) / pbGridSpacing, vec3(0.0), vec3(pbGridCounts - 1));
+float pbSignNotZero(float v) {
+  return v >= 0.0 ? 1.0 : -1.0;
+}
+
+// Unit direction w to octahedral coordinates in [-1, 1]^2, the lower hemisphere folded over the
+// diagonals (docs/volume-format.md).
+vec2 pbOctahedralEncode(vec3 w) {
+  vec2 uv = w.xy / (abs(w.x) + abs(w.y) + abs(w.z));
+  if (w.z < 0.0)
+    uv = vec2((1.0 - abs(uv.y)) * pbSignNotZero(uv.x), (1.0 - abs(uv.x)) * pbSignNotZero(uv.y));
+  return uv;
+}
+
+vec3 pbOctahedralDecode(vec2 uv) {
+  vec3 w = vec3(uv, 1.0 - abs(uv.x) - abs(uv.y));
+  if (w.z < 0.0)
+    w.xy = vec2((1.0 - abs(uv.y)) * pbSignNotZero(uv.x), (1.0 - abs(uv.x)) * pbSignNotZero(uv.y));
+  return normalize(w);
+}
+
+// A texel (column, row) of the map with its border wrapped: off an edge onto the mirrored texel
+// of the same edge, off a corner onto the opposite corner.
+ivec2 pbWrappedTexel(ivec2 t) {
+  if (t.x < 0 || t.x >= pbVisSize) {
+    t.x = t.x < 0 ? 0 : pbVisSize - 1;
+    t.y = pbVisSize - 1 - t.y;
+  }
+  if (t.y < 0 || t.y >= pbVisSize) {
+    t.y = t.y < 0 ? 0 : pbVisSize - 1;
+    t.x = pbVisSize - 1 - t.x;
+  }
+  return t;
+}
+
+// Visibility in [0, 1] of point x from probe `probe` baked at probePos: the moments of the four
+// texels around the direction to x, each texel's 1/t scaled by 1 / |its centre direction|_1 so a
+// plane stays linear in the map, blended bilinearly and scaled back by |direction|_1; the
+// variance less what the trend between the texels explains, at least (1% of the mean)^2; then
+// 1 where 1/|x - probePos| >= mean, else Chebyshev's one-sided bound, cubed.
+float pbProbeVisibility(ivec3 probe, vec3 probePos, vec3 x) {
+  vec3 fromProbe = x - probePos;
+  float d = length(fromProbe);
+  if (!(d > 0.0)) return 1.0;
+  vec3 w = fromProbe / d;
+  vec2 f = (pbOctahedralEncode(w) + 1.0) * 0.5 * float(pbVisSize) - 0.5;
+  ivec2 ij = ivec2(floor(f));
+  vec2 ab = f - vec2(ij);
+  float mean = 0.0, variance = 0.0;
+  float q[4], tap[4];
+  for (int k = 0; k < 4; k++) {
+    ivec2 o = ivec2(k & 1, k >> 1);
+    ivec2 t = pbWrappedTexel(ij + o);
+    vec3 centre = pbOctahedralDecode((vec2(t) + 0.5) / float(pbVisSize) * 2.0 - 1.0);
+    float scale = 1.0 / (abs(centre.x) + abs(centre.y) + abs(centre.z));
+    vec4 m = texelFetch(pbvisibility, ivec3(pbVisSize * probe.xy + t, probe.z), 0);
+    tap[k] = (o.x == 1 ? ab.x : 1.0 - ab.x) * (o.y == 1 ? ab.y : 1.0 - ab.y);
+    q[k] = scale * m.x;
+    mean += tap[k] * q[k];
+    variance += tap[k] * scale * scale * max(m.y - m.x * m.x, 0.0);
+  }
+  float wu = tap[1] + tap[3], wv = tap[2] + tap[3];
+  float gu = (q[1] - q[0]) * (1.0 - wv) + (q[3] - q[2]) * wv;
+  float gv = (q[2] - q[0]) * (1.0 - wu) + (q[3] - q[1]) * wu;
+  variance = max(variance - (gu * gu + gv * gv) / 12.0, pbMinRelativeVariance * mean * mean);
+  float l1 = abs(w.x) + abs(w.y) + abs(w.z);
+  mean *= l1;
+  variance *= l1 * l1;
+  float s = 1.0 / d;
+  if (s >= mean) return 1.0;
+  float excess = mean - s;
+  float p = variance / (variance + excess * excess);
+  return p * p * p;
+}
+
+// The blended radiance SH at world point x with normal n (probebake's frame, any length), in
+// c; returns the number of probes that took part (0: none holds light here, c is then 0).
+int pbBlendSh(vec3 x, vec3 n, out vec3 c[9]) {
+  n = normalize(n);
+  vec3 biased = x + n * (PB_NORMAL_BIAS * min(pbGridSpacing.x, min(pbGridSpacing.y, pbGridSpacing.z)));
+  vec3 g = clamp((x - pbGridOrigin) / pbGridSpacing, vec3(0.0), vec3(pbGridCounts - 1));
   ivec3 i0 = min(ivec3(floor(g)), max(pbGridCounts - 2, ivec3(0)));
   vec3 f = clamp(g - vec3(i0), 0.0, 1.0);
-  vec3 sum = vec3(0.0);
-  float wsum = 0.0;
+  // First the weights before crushing and trilinear, then the crush relative to the largest: when
+  // every probe is crushed, w^3 / 0.2^2 underflows float for the hidden ones (w down to 1e-30),
+  // and the blend depends only on the ratios w / max w.
+  float v[8], tri[8];
+  float vmax = 0.0;
   for (int corner = 0; corner < 8; corner++) {
     ivec3 o = ivec3(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
     ivec3 q = min(i0 + o, pbGridCounts - 1);
     vec3 wv = mix(1.0 - f, f, vec3(o));
-    float w = wv.x * wv.y * wv.z;
-    if (w <= 0.0 || texelFetch(pbL0_validity, q, 0).a < 0.5) continue;
-    vec3 c[9];
-    pbProbeSh(q, c);
-    sum += w * pbShIrradiance(c, n);
-    wsum += w;
+    tri[corner] = wv.x * wv.y * wv.z;
+    v[corner] = 0.0;
+    if (tri[corner] <= 0.0 || texelFetch(pbL0_validity, q, 0).a < 0.5) continue;
+    vec3 probePos = pbGridOrigin + vec3(q) * pbGridSpacing;
+    if (pbHasOffsets) probePos += texelFetch(pboffset_filled, q, 0).xyz;
+    vec3 toProbe = probePos - x;
+    float len = length(toProbe);
+    float h = ((len > 0.0 ? dot(toProbe / len, n) : 1.0) + 1.0) * 0.5;
+    float w = h * h + 0.2;
+    if (pbHasVisibility)
+      w = max(w * min(pbProbeVisibility(q, probePos, biased), pbProbeVisibility(q, probePos, x)),
+              pbMinWeight);
+    v[corner] = w;
+    vmax = max(vmax, w);
   }
-  return vec4(wsum > 0.0 ? sum / wsum : vec3(0.0), wsum);
+  for (int k = 0; k < 9; k++) c[k] = vec3(0.0);
+  float total = 0.0;
+  int probes = 0;
+  for (int corner = 0; corner < 8; corner++) {
+    if (v[corner] <= 0.0) continue;
+    float w = v[corner];
+    if (pbHasVisibility && vmax < pbCrush) {
+      float r = w / vmax;
+      w = r * r * r;
+    } else if (pbHasVisibility && w < pbCrush) {
+      w *= w * w / (pbCrush * pbCrush);
+    }
+    w *= tri[corner];
+    ivec3 o = ivec3(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
+    vec3 p[9];
+    pbProbeSh(min(i0 + o, pbGridCounts - 1), p);
+    for (int k = 0; k < 9; k++) c[k] += w * p[k];
+    total += w;
+    probes++;
+  }
+  if (total > 0.0)
+    for (int k = 0; k < 9; k++) c[k] /= total;
+  return probes;
+}
+
+// Irradiance at world point x with normal n (probebake's frame); .w is the number of probes that
+// took part (0: no probe holds light here, .rgb is then 0).
+vec4 pbIrradiance(vec3 x, vec3 n) {
+  vec3 c[9];
+  int probes = pbBlendSh(x, n, c);
+  return vec4(pbShIrradiance(c, normalize(n)), float(probes));
 }
 
 #endif  // PROBEBAKE_PROBES_GLSL

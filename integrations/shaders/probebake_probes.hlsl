@@ -1,23 +1,37 @@
 // probebake probe textures (`probebake export VOLUME --format textures`, docs/engines.md) sampled
-// in HLSL (SM 4.0+): the same maths as probebake_probes.glsl, which the viewer's test runs
-// against the core; this file is its line-by-line translation (not compiled in probebake's CI).
+// in HLSL (SM 4.0+) with the weights of probebake's reference sampler: the same maths as
+// probebake_probes.glsl, line by line (see there for the weights). probebake's tests compile it
+// with glslang and run it, cross-compiled by SPIRV-Cross, in WebGL against the core sampler.
 // Points and normals in probebake's frame (right-handed, Z up): from Unity,
-// pb = float3(p.x, p.z, p.y).
+// pb = float3(p.x, p.z, p.y). Set pbHasOffsets / pbHasVisibility when the header lists
+// `offset_filled` / `visibility`; bind some 3D texture to those slots when it does not.
 #ifndef PROBEBAKE_PROBES_HLSL
 #define PROBEBAKE_PROBES_HLSL
 
-Texture3D<float4> pbL0_validity;  // RGBA16F (L0.rgb, usable)
-Texture3D<float4> pbL1_r;         // RGBA16F (c1, c2, c3, 0) of red
+Texture3D<float4> pbL0_validity;    // RGBA16F (L0.rgb, usable)
+Texture3D<float4> pbL1_r;           // RGBA16F (c1, c2, c3, 0) of red
 Texture3D<float4> pbL1_g;
 Texture3D<float4> pbL1_b;
-Texture3D<float4> pbL2_0;        // RGBA8 UNORM: c4..c8 of r, g, b, 4 per texel
+Texture3D<float4> pbL2_0;           // RGBA8 UNORM: c4..c8 of r, g, b, 4 per texel
 Texture3D<float4> pbL2_1;
 Texture3D<float4> pbL2_2;
 Texture3D<float4> pbL2_3;
+Texture3D<float4> pboffset_filled;  // RGBA16F (offset xyz in scene units, filled)
+Texture3D<float4> pbvisibility;     // RGBA32F atlas 8nx x 8ny x nz: (mean 1/t, mean 1/t^2)
 float3 pbGridOrigin;
 float3 pbGridSpacing;
 int3 pbGridCounts;
 float pbL2Scale;
+bool pbHasOffsets;
+bool pbHasVisibility;
+
+#ifndef PB_NORMAL_BIAS
+#define PB_NORMAL_BIAS 0.01
+#endif
+static const int pbVisSize = 8;
+static const float pbCrush = 0.2;
+static const float pbMinWeight = 1e-30;
+static const float pbMinRelativeVariance = 1e-4;
 
 void pbProbeSh(int3 p, out float3 c[9]) {
   c[0] = pbL0_validity.Load(int4(p, 0)).rgb;
@@ -29,7 +43,7 @@ void pbProbeSh(int3 p, out float3 c[9]) {
   float4 t[4] = {pbL2_0.Load(int4(p, 0)), pbL2_1.Load(int4(p, 0)), pbL2_2.Load(int4(p, 0)),
                  pbL2_3.Load(int4(p, 0))};
   float l2[16];
-  [unroll] for (int i = 0; i < 15; i++) l2[i] = (t[i / 4][i % 4] - 0.5) * 2.0 * pbL2Scale;
+  [unroll] for (int i = 0; i < 15; i++) l2[i] = (round(t[i / 4][i % 4] * 255.0) - 128.0) / 127.0 * pbL2Scale;
   [unroll] for (int k = 0; k < 5; k++) c[4 + k] = float3(l2[k], l2[5 + k], l2[10 + k]);
 }
 
@@ -42,24 +56,128 @@ float3 pbShIrradiance(float3 c[9], float3 n) {
                0.946174696 * (z * z - 1.0 / 3.0) * c[6] + 0.546274215 * (x * x - y * y) * c[8]);
 }
 
-float4 pbIrradiance(float3 p, float3 n) {
-  float3 g = clamp((p - pbGridOrigin) / pbGridSpacing, 0.0, float3(pbGridCounts - 1));
+float pbSignNotZero(float v) {
+  return v >= 0.0 ? 1.0 : -1.0;
+}
+
+float2 pbOctahedralEncode(float3 w) {
+  float2 uv = w.xy / (abs(w.x) + abs(w.y) + abs(w.z));
+  if (w.z < 0.0)
+    uv = float2((1.0 - abs(uv.y)) * pbSignNotZero(uv.x), (1.0 - abs(uv.x)) * pbSignNotZero(uv.y));
+  return uv;
+}
+
+float3 pbOctahedralDecode(float2 uv) {
+  float3 w = float3(uv, 1.0 - abs(uv.x) - abs(uv.y));
+  if (w.z < 0.0)
+    w.xy = float2((1.0 - abs(uv.y)) * pbSignNotZero(uv.x), (1.0 - abs(uv.x)) * pbSignNotZero(uv.y));
+  return normalize(w);
+}
+
+int2 pbWrappedTexel(int2 t) {
+  if (t.x < 0 || t.x >= pbVisSize) {
+    t.x = t.x < 0 ? 0 : pbVisSize - 1;
+    t.y = pbVisSize - 1 - t.y;
+  }
+  if (t.y < 0 || t.y >= pbVisSize) {
+    t.y = t.y < 0 ? 0 : pbVisSize - 1;
+    t.x = pbVisSize - 1 - t.x;
+  }
+  return t;
+}
+
+float pbProbeVisibility(int3 probe, float3 probePos, float3 x) {
+  float3 fromProbe = x - probePos;
+  float d = length(fromProbe);
+  if (!(d > 0.0)) return 1.0;
+  float3 w = fromProbe / d;
+  float2 f = (pbOctahedralEncode(w) + 1.0) * 0.5 * float(pbVisSize) - 0.5;
+  int2 ij = int2(floor(f));
+  float2 ab = f - float2(ij);
+  float mean = 0.0, variance = 0.0;
+  float q[4], tap[4];
+  [unroll] for (int k = 0; k < 4; k++) {
+    int2 o = int2(k & 1, k >> 1);
+    int2 t = pbWrappedTexel(ij + o);
+    float3 centre = pbOctahedralDecode((float2(t) + 0.5) / float(pbVisSize) * 2.0 - 1.0);
+    float scale = 1.0 / (abs(centre.x) + abs(centre.y) + abs(centre.z));
+    float4 m = pbvisibility.Load(int4(pbVisSize * probe.xy + t, probe.z, 0));
+    tap[k] = (o.x == 1 ? ab.x : 1.0 - ab.x) * (o.y == 1 ? ab.y : 1.0 - ab.y);
+    q[k] = scale * m.x;
+    mean += tap[k] * q[k];
+    variance += tap[k] * scale * scale * max(m.y - m.x * m.x, 0.0);
+  }
+  float wu = tap[1] + tap[3], wv = tap[2] + tap[3];
+  float gu = (q[1] - q[0]) * (1.0 - wv) + (q[3] - q[2]) * wv;
+  float gv = (q[2] - q[0]) * (1.0 - wu) + (q[3] - q[1]) * wu;
+  variance = max(variance - (gu * gu + gv * gv) / 12.0, pbMinRelativeVariance * mean * mean);
+  float l1 = abs(w.x) + abs(w.y) + abs(w.z);
+  mean *= l1;
+  variance *= l1 * l1;
+  float s = 1.0 / d;
+  if (s >= mean) return 1.0;
+  float excess = mean - s;
+  float p = variance / (variance + excess * excess);
+  return p * p * p;
+}
+
+int pbBlendSh(float3 x, float3 n, out float3 c[9]) {
+  n = normalize(n);
+  float3 biased =
+      x + n * (PB_NORMAL_BIAS * min(pbGridSpacing.x, min(pbGridSpacing.y, pbGridSpacing.z)));
+  float3 g = clamp((x - pbGridOrigin) / pbGridSpacing, 0.0, float3(pbGridCounts - 1));
   int3 i0 = min(int3(floor(g)), max(pbGridCounts - 2, int3(0, 0, 0)));
   float3 f = saturate(g - float3(i0));
-  float3 sum = 0.0;
-  float wsum = 0.0;
+  float v[8], tri[8];
+  float vmax = 0.0;
   [unroll] for (int corner = 0; corner < 8; corner++) {
     int3 o = int3(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
     int3 q = min(i0 + o, pbGridCounts - 1);
     float3 wv = lerp(1.0 - f, f, float3(o));
-    float w = wv.x * wv.y * wv.z;
-    if (w <= 0.0 || pbL0_validity.Load(int4(q, 0)).a < 0.5) continue;
-    float3 c[9];
-    pbProbeSh(q, c);
-    sum += w * pbShIrradiance(c, n);
-    wsum += w;
+    tri[corner] = wv.x * wv.y * wv.z;
+    v[corner] = 0.0;
+    if (tri[corner] <= 0.0 || pbL0_validity.Load(int4(q, 0)).a < 0.5) continue;
+    float3 probePos = pbGridOrigin + float3(q) * pbGridSpacing;
+    if (pbHasOffsets) probePos += pboffset_filled.Load(int4(q, 0)).xyz;
+    float3 toProbe = probePos - x;
+    float len = length(toProbe);
+    float h = ((len > 0.0 ? dot(toProbe / len, n) : 1.0) + 1.0) * 0.5;
+    float w = h * h + 0.2;
+    if (pbHasVisibility)
+      w = max(w * min(pbProbeVisibility(q, probePos, biased), pbProbeVisibility(q, probePos, x)),
+              pbMinWeight);
+    v[corner] = w;
+    vmax = max(vmax, w);
   }
-  return float4(wsum > 0.0 ? sum / wsum : float3(0.0, 0.0, 0.0), wsum);
+  [unroll] for (int k = 0; k < 9; k++) c[k] = float3(0.0, 0.0, 0.0);
+  float total = 0.0;
+  int probes = 0;
+  [unroll] for (int corner2 = 0; corner2 < 8; corner2++) {
+    if (v[corner2] <= 0.0) continue;
+    float w = v[corner2];
+    if (pbHasVisibility && vmax < pbCrush) {
+      float r = w / vmax;
+      w = r * r * r;
+    } else if (pbHasVisibility && w < pbCrush) {
+      w *= w * w / (pbCrush * pbCrush);
+    }
+    w *= tri[corner2];
+    int3 o = int3(corner2 & 1, (corner2 >> 1) & 1, (corner2 >> 2) & 1);
+    float3 p[9];
+    pbProbeSh(min(i0 + o, pbGridCounts - 1), p);
+    [unroll] for (int k2 = 0; k2 < 9; k2++) c[k2] += w * p[k2];
+    total += w;
+    probes++;
+  }
+  if (total > 0.0)
+    [unroll] for (int k3 = 0; k3 < 9; k3++) c[k3] /= total;
+  return probes;
+}
+
+float4 pbIrradiance(float3 x, float3 n) {
+  float3 c[9];
+  int probes = pbBlendSh(x, n, c);
+  return float4(pbShIrradiance(c, normalize(n)), float(probes));
 }
 
 #endif  // PROBEBAKE_PROBES_HLSL

@@ -98,6 +98,29 @@ inline BakeJob MakeJob(int order, int64_t samples, Vec3d p = {}) {
   return job;
 }
 
+// The leak scene: two closed rooms, x in [-2, 0] (lit by a point light) and [kTwoRoomsWall, 2]
+// (dark), divided by a wall x in [0, kTwoRoomsWall] that pokes through the shell, so no ray
+// passes round it; 8 x 4 x 4 probes at kTwoRoomsSpacing, the layers at x = firstX + spacing i,
+// 512 samples, visibility moments and relocation (up to 0.4 spacing) on.
+inline constexpr double kTwoRoomsSpacing = 0.5;
+inline constexpr double kTwoRoomsWall = 0.04;  // thinner than a tenth of the spacing
+inline BakeJob TwoRoomsWithThinWall(double firstX) {
+  BakeJob job = MakeJob(2, 512, {firstX, -0.75, 0.25});
+  job.grid.counts[0] = 8;
+  job.grid.counts[1] = 4;
+  job.grid.counts[2] = 4;
+  job.grid.spacing = {kTwoRoomsSpacing, kTwoRoomsSpacing, kTwoRoomsSpacing};
+  job.settings.batches = 4;
+  job.settings.maxDepth = 4;
+  job.settings.visibility = true;
+  job.settings.relocationMaxOffset = 0.4;
+  const uint32_t white = AddMaterial(&job.scene, {0.7, 0.7, 0.7});
+  AddBox(&job.scene, {-2, -1, 0}, {2, 1, 2}, white, /*inward=*/true);
+  AddBox(&job.scene, {0, -1.01, -0.01}, {kTwoRoomsWall, 1.01, 2.01}, white, /*inward=*/false);
+  job.scene.lights.push_back(PointLight{{-1, 0, 1.2}, {4, 4, 4}});
+  return job;
+}
+
 // Coefficients of one probe, RGB per coefficient, with their standard errors.
 struct ProbeResult {
   std::vector<Vec3d> radiance, stdError;

@@ -1,6 +1,6 @@
 // The textures export read back: header and binary decoded as docs/engines.md says, irradiance of
 // the decoded coefficients against the core's at every usable probe, within the bound the
-// quantisation gives (half: relative 2^-11 per coefficient; L2 bytes: l2Scale / 255 absolute).
+// quantisation gives (half: relative 2^-11 per coefficient; L2 bytes: l2Scale / 254 absolute).
 #include <Imath/half.h>
 #include <gtest/gtest.h>
 
@@ -73,12 +73,12 @@ TEST(ProbeTextures, ExportDecodesToTheCoreIrradianceWithinTheQuantisationBound) 
     for (int v = 0; v < 15; ++v) {
       const int ch = v / 5, k = 4 + v % 5;
       const double q = static_cast<uint8_t>(bin[offsets[4 + v / 4] + 4 * t + v % 4]);
-      c[k][ch] = (q / 255 - 0.5) * 2 * l2Scale;
+      c[k][ch] = (q - 128) / 127 * l2Scale;
     }
     for (int k = 0; k < 9; ++k)
       for (int ch = 0; ch < 3; ++ch) {
         const double exact = volume.radiance[k][3 * t + ch];
-        err[k][ch] = k < 4 ? std::ldexp(std::abs(exact), -11) : l2Scale / 255;
+        err[k][ch] = k < 4 ? std::ldexp(std::abs(exact), -11) : l2Scale / 254;
       }
     for (const Vec3d& n : {Vec3d{0, 0, 1}, Vec3d{0, 0, -1}, Vec3d{1, 0, 0}, Vec3d{0.48, 0.6, 0.64},
                            Vec3d{-0.6, 0.64, -0.48}}) {
@@ -107,6 +107,31 @@ TEST(ProbeTextures, ExportDecodesToTheCoreIrradianceWithinTheQuantisationBound) 
   std::printf("textures: %d usable texels, worst error / bound %.3g\n", usable, worstRatio);
 }
 
+// A probe in a dark room holds 0 in every coefficient; its texels must read 0, not the L2
+// encoding's nearest code (version 2 read l2Scale / 255 there).
+TEST(ProbeTextures, ABlackProbeReadsExactlyZero) {
+  ProbeVolume volume = PlausibleVolume(3);
+  size_t black = 0;
+  while (!(volume.active[black] && volume.validity[black] >= 0.5f)) ++black;
+  for (auto& plane : volume.radiance)
+    for (int ch = 0; ch < 3; ++ch) plane[3 * black + size_t(ch)] = 0;
+  const absl::StatusOr<ProbeTextures> packed = PackProbeTextures(volume, "x.bin");
+  ASSERT_TRUE(packed.ok()) << packed.status();
+  const std::string bin(packed->bin.begin(), packed->bin.end());
+  const size_t texels = static_cast<size_t>(volume.grid.ProbeCount());
+  ASSERT_GT(packed->l2Scale, 0);
+  EXPECT_EQ(Half(bin, 8 * black + 6), 1.0) << "the black probe is usable";
+  for (int ch = 0; ch < 3; ++ch) EXPECT_EQ(Half(bin, 8 * black + 2 * size_t(ch)), 0.0);
+  for (int t = 1; t <= 3; ++t)
+    for (int c = 0; c < 3; ++c)
+      EXPECT_EQ(Half(bin, t * 8 * texels + 8 * black + 2 * size_t(c)), 0.0);
+  for (int v = 0; v < 15; ++v) {
+    const double q =
+        static_cast<uint8_t>(bin[32 * texels + (v / 4) * 4 * texels + 4 * black + v % 4]);
+    EXPECT_EQ((q - 128) / 127 * packed->l2Scale, 0.0) << "L2 value " << v;
+  }
+}
+
 TEST(ProbeTextures, OffsetsFilledFlagsAndVisibilityAreCarried) {
   ProbeVolume volume = PlausibleVolume(5);
   const size_t texels = static_cast<size_t>(volume.grid.ProbeCount());
@@ -129,7 +154,7 @@ TEST(ProbeTextures, OffsetsFilledFlagsAndVisibilityAreCarried) {
   const absl::StatusOr<ProbeTextures> packed = PackProbeTextures(volume, "x.bin");
   ASSERT_TRUE(packed.ok()) << packed.status();
   const google::protobuf::Struct header = ParseJson(packed->headerJson);
-  EXPECT_EQ(header.fields().at("version").number_value(), 2);
+  EXPECT_EQ(header.fields().at("version").number_value(), 3);
   const auto& textures = header.fields().at("textures").list_value();
   ASSERT_EQ(textures.values_size(), 10);
   const auto& offsetTexture = textures.values(8).struct_value().fields();

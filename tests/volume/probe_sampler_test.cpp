@@ -19,28 +19,8 @@ namespace {
 
 using namespace probebake::testing;
 
-constexpr double kSpacing = 0.5;
-constexpr double kWall = 0.04;  // thinner than a tenth of the spacing
-
-// Two closed rooms, x in [-2, 0] (lit by a point light) and [kWall, 2] (dark), divided by a wall
-// x in [0, kWall] that pokes through the shell, so no ray passes round it. The probe layers sit at
-// x = firstX + kSpacing i.
-BakeJob TwoRooms(double firstX) {
-  BakeJob job = MakeJob(2, 512, {firstX, -0.75, 0.25});
-  job.grid.counts[0] = 8;
-  job.grid.counts[1] = 4;
-  job.grid.counts[2] = 4;
-  job.grid.spacing = {kSpacing, kSpacing, kSpacing};
-  job.settings.batches = 4;
-  job.settings.maxDepth = 4;
-  job.settings.visibility = true;
-  job.settings.relocationMaxOffset = 0.4;
-  const uint32_t white = AddMaterial(&job.scene, {0.7, 0.7, 0.7});
-  AddBox(&job.scene, {-2, -1, 0}, {2, 1, 2}, white, /*inward=*/true);
-  AddBox(&job.scene, {0, -1.01, -0.01}, {kWall, 1.01, 2.01}, white, /*inward=*/false);
-  job.scene.lights.push_back(PointLight{{-1, 0, 1.2}, {4, 4, 4}});
-  return job;
-}
+constexpr double kSpacing = kTwoRoomsSpacing;
+constexpr double kWall = kTwoRoomsWall;
 
 double Luminance(const Vec3d& e) {
   return 0.2126 * e.x + 0.7152 * e.y + 0.0722 * e.z;
@@ -113,7 +93,7 @@ std::string Figures(const Leak& leak, bool offFloor = false) {
 // at least `from` beyond the wall, and for those off the floor at least `offFloorFrom` beyond it
 // (the figures for all are printed, with plain trilinear's).
 void ExpectNoLeak(double firstX, double from, double offFloorFrom) {
-  const BakeJob job = TwoRooms(firstX);
+  const BakeJob job = TwoRoomsWithThinWall(firstX);
   const ProbeVolume volume = BakeOrDie(job);
   const Leak with = MeasureLeak(volume, {});
   ProbeSamplerOptions plain;

@@ -1,5 +1,6 @@
 // probebake's viewer (docs/engines.md): reads the JSON `probebake view` inlines, lights the
-// scene's meshes by trilinear interpolation of the probes' SH irradiance, and draws each probe
+// scene's meshes with the probes' SH irradiance through the GLSL include (the core sampler's
+// weights: trilinear, backface, visibility, offsets), and draws each probe
 // as a small sphere shaded by its SH or coloured by an overlay. Bundled with three.js by esbuild
 // at build time (web/CMakeLists.txt); everything runs from the one HTML file.
 import * as THREE from 'three';
@@ -18,6 +19,10 @@ const textureUniforms = {
   pbGridSpacing: { value: new THREE.Vector3(...header.spacing) },
   pbGridCounts: { value: new THREE.Vector3(nx, ny, nz) },
   pbL2Scale: { value: header.l2Scale },
+  // The include weighs probes as the core's sampler does with what the textures hold: offsets
+  // (relocation) and visibility moments when the volume has them.
+  pbHasOffsets: { value: header.textures.some((t) => t.name === 'offset_filled') },
+  pbHasVisibility: { value: header.textures.some((t) => t.name === 'visibility') },
 };
 for (const t of header.textures) {
   const half = t.format === 'RGBA16F', float = t.format === 'RGBA32F';
@@ -33,6 +38,10 @@ for (const t of header.textures) {
   texture.needsUpdate = true;
   textureUniforms['pb' + t.name] = { value: texture };  // the include's uniform names
 }
+// The optional textures' samplers still need a 3D texture bound (WebGL refuses a draw whose
+// samplers of different kinds share a unit); the flags above keep the include from reading them.
+for (const name of ['pboffset_filled', 'pbvisibility'])
+  textureUniforms[name] ||= { value: textureUniforms.pbL0_validity.value };
 
 // three.js's SphericalHarmonics3.getIrradianceAt, in GLSL: E(n) from radiance coefficients.
 const shGlsl = /* glsl */ `

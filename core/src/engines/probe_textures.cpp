@@ -56,7 +56,7 @@ absl::StatusOr<ProbeTextures> PackProbeTextures(const ProbeVolume& volume,
   const size_t offsetAt = core, momentsAt = core + (offsets ? halfBytes : 0);
   const size_t momentsBytes = moments ? texels * kVisibilityTexels * 16 : 0;
   out.bin.assign(momentsAt + momentsBytes, 0);
-  // Unusable texels: half zeros are 0 bits; L2 bytes encode 0 as 128 (q for v = 0 rounds up).
+  // Unusable texels: half zeros are 0 bits; L2 bytes encode 0 as 128.
   std::fill(out.bin.begin() + 4 * halfBytes, out.bin.begin() + core, uint8_t{128});
   if (offsets)
     for (const EngineProbe& p : *probes) {
@@ -87,15 +87,15 @@ absl::StatusOr<ProbeTextures> PackProbeTextures(const ProbeVolume& volume,
         PutHalf(&out.bin, (1 + ch) * halfBytes + 8 * t + 2 * (c - 1), p.radiance[c][ch]);
     for (int v = 0; v < 15; ++v) {
       const int ch = v / 5, c = 4 + v % 5;
-      const double unit = 0.5 + p.radiance[c][ch] / (2 * out.l2Scale);
-      const double q = std::round(255 * std::clamp(unit, 0.0, 1.0));
+      const double q =
+          128 + std::round(127 * std::clamp(p.radiance[c][ch] / out.l2Scale, -1.0, 1.0));
       out.bin[4 * halfBytes + (v / 4) * byteBytes + 4 * t + v % 4] = static_cast<uint8_t>(q);
     }
   }
 
   std::string& h = out.headerJson;
   absl::StrAppendFormat(&h,
-                        "{\"format\":\"probebake-probe-textures\",\"version\":2,"
+                        "{\"format\":\"probebake-probe-textures\",\"version\":3,"
                         "\"counts\":[%d,%d,%d],\"origin\":[%.17g,%.17g,%.17g],"
                         "\"spacing\":[%.17g,%.17g,%.17g],\"l2Scale\":%.9g,\"bin\":\"%s\","
                         "\"textures\":[",

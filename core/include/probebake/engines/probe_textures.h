@@ -10,8 +10,8 @@
 //   L1_r, L1_g, L1_b  RGBA16F  (c1, c2, c3, 0) of that colour channel
 //   L2_0 .. L2_3  RGBA8 UNORM  the 15 values c4..c8 of r, then of g, then of b, 4 per texel in
 //                 that order (the 16th byte is 128), each stored as
-//                 q = round(255 (0.5 + v / (2 l2Scale))), read back as v = (q / 255 - 0.5) 2
-//                 l2Scale
+//                 q = 128 + round(127 v / l2Scale) in [1, 255], read back as
+//                 v = (q - 128) / 127 l2Scale: 0 exactly for 0, so a black probe stays black
 // Then, when the volume has them (the header lists what is there):
 //   offset_filled  RGBA16F  (offset x, y, z, filled ? 1 : 0): with relocation, the offset from
 //                 the grid point to where the probe was baked, scene units (a shader's backface
@@ -25,7 +25,8 @@
 // normal into probebake's frame first (three: (x, -z, y) of three's; Unity: (x, z, y) of Unity's).
 // Probes that are inactive or unusable (validity < 0.5 and not filled) hold 0 everywhere, alpha 0
 // in L0_validity.
-// Header: {"format": "probebake-probe-textures", "version": 2 (1 had no optional textures),
+// Header: {"format": "probebake-probe-textures", "version": 3 (2 stored L2 as
+// round(255 (0.5 + v / (2 l2Scale))), which reads 0 as l2Scale / 255; 1 had no optional textures),
 // "counts": [nx, ny, nz],
 //   "origin": [x, y, z], "spacing": [x, y, z] (probebake frame; texel centres are probes),
 //   "l2Scale": s (max |L2| over usable probes, 1 if all are 0), "bin": "<file name>",
