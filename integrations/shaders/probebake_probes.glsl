@@ -14,8 +14,9 @@
 // three.js: pb = vec3(p.x, -p.z, p.y); from Unity: pb = vec3(p.x, p.z, p.y).
 // Bind the textures with NEAREST filtering (texelFetch reads texels exactly) and set the uniforms
 // from the header: counts, origin, spacing, l2Scale, and pbHasOffsets / pbHasVisibility when the
-// header lists `offset_filled` / `visibility`. Texture uniforms are named "pb" followed by the
-// header's texture name. Declare float and sampler3D precision highp before including.
+// header lists `offset_filled` / `visibility`, and the sky (below) to relight a volume baked with
+// a sky transfer. Texture uniforms are named "pb" followed by the header's texture name. Declare
+// float and sampler3D precision highp before including.
 #ifndef PROBEBAKE_PROBES_GLSL
 #define PROBEBAKE_PROBES_GLSL
 
@@ -36,6 +37,17 @@ uniform float pbL2Scale;
 uniform bool pbHasOffsets;     // the header lists offset_filled
 uniform bool pbHasVisibility;  // the header lists visibility
 
+// Relighting (a volume baked with a sky transfer, header skyTransferOrder Ls > 0): the textures'
+// coefficients are the local lights, and each probe adds T times the sky's SH. Set pbSkyCoeffs to
+// (Ls + 1)^2 and pbSky to the sky's radiance SH coefficients (probebake's basis and frame,
+// docs/engines.md); 0 leaves the local lights alone.
+#ifndef PB_MAX_SKY_COEFFS
+#define PB_MAX_SKY_COEFFS 25
+#endif
+uniform highp sampler3D pbsky_transfer;  // RGBA16F atlas S nx x 9 ny x nz: T[r][s].rgb
+uniform int pbSkyCoeffs;
+uniform vec3 pbSky[PB_MAX_SKY_COEFFS];
+
 // The normal bias as a fraction of the smallest spacing (the core's ProbeSamplerOptions default).
 #ifndef PB_NORMAL_BIAS
 #define PB_NORMAL_BIAS 0.01
@@ -45,7 +57,7 @@ const float pbCrush = 0.2;      // DDGI's crushing threshold
 const float pbMinWeight = 1e-30;
 const float pbMinRelativeVariance = 1e-4;
 
-// The 9 RGB radiance coefficients of probe p.
+// The 9 RGB radiance coefficients of probe p (relit when pbSkyCoeffs > 0).
 void pbProbeSh(ivec3 p, out vec3 c[9]) {
   c[0] = texelFetch(pbL0_validity, p, 0).rgb;
   vec3 r = texelFetch(pbL1_r, p, 0).xyz, g = texelFetch(pbL1_g, p, 0).xyz,
@@ -60,6 +72,11 @@ void pbProbeSh(ivec3 p, out vec3 c[9]) {
   vec4 t[4] = vec4[4](t0, t1, t2, t3);
   for (int i = 0; i < 15; i++) l2[i] = (round(t[i / 4][i % 4] * 255.0) - 128.0) / 127.0 * pbL2Scale;
   for (int k = 0; k < 5; k++) c[4 + k] = vec3(l2[k], l2[5 + k], l2[10 + k]);
+  // radiance_r = local_r + sum_s T[r][s] sky_s
+  for (int row = 0; row < 9; row++)
+    for (int col = 0; col < pbSkyCoeffs; col++)
+      c[row] += texelFetch(pbsky_transfer, ivec3(pbSkyCoeffs * p.x + col, 9 * p.y + row, p.z), 0)
+                    .rgb * pbSky[col];
 }
 
 // E(n) of one probe's coefficients, n a unit normal in probebake's frame.

@@ -4,7 +4,8 @@
 // with glslang and run it, cross-compiled by SPIRV-Cross, in WebGL against the core sampler.
 // Points and normals in probebake's frame (right-handed, Z up): from Unity,
 // pb = float3(p.x, p.z, p.y). Set pbHasOffsets / pbHasVisibility when the header lists
-// `offset_filled` / `visibility`; bind some 3D texture to those slots when it does not.
+// `offset_filled` / `visibility`; bind some 3D texture to those slots when it does not. To relight
+// a volume baked with a sky transfer, set pbSkyCoeffs = (Ls + 1)^2 and pbSky (see the GLSL).
 #ifndef PROBEBAKE_PROBES_HLSL
 #define PROBEBAKE_PROBES_HLSL
 
@@ -24,6 +25,13 @@ int3 pbGridCounts;
 float pbL2Scale;
 bool pbHasOffsets;
 bool pbHasVisibility;
+
+#ifndef PB_MAX_SKY_COEFFS
+#define PB_MAX_SKY_COEFFS 25
+#endif
+Texture3D<float4> pbsky_transfer;  // RGBA16F atlas S nx x 9 ny x nz: T[r][s].rgb
+int pbSkyCoeffs;                   // (Ls + 1)^2 to relight, else 0
+float3 pbSky[PB_MAX_SKY_COEFFS];   // the sky's radiance SH (probebake's basis and frame)
 
 #ifndef PB_NORMAL_BIAS
 #define PB_NORMAL_BIAS 0.01
@@ -45,6 +53,10 @@ void pbProbeSh(int3 p, out float3 c[9]) {
   float l2[16];
   [unroll] for (int i = 0; i < 15; i++) l2[i] = (round(t[i / 4][i % 4] * 255.0) - 128.0) / 127.0 * pbL2Scale;
   [unroll] for (int k = 0; k < 5; k++) c[4 + k] = float3(l2[k], l2[5 + k], l2[10 + k]);
+  for (int row = 0; row < 9; row++)
+    for (int col = 0; col < pbSkyCoeffs; col++)
+      c[row] += pbsky_transfer.Load(int4(pbSkyCoeffs * p.x + col, 9 * p.y + row, p.z, 0)).rgb *
+                pbSky[col];
 }
 
 float3 pbShIrradiance(float3 c[9], float3 n) {

@@ -20,6 +20,7 @@
 #include "absl/strings/str_join.h"
 #include "bake/bake_test_util.h"
 #include "engine_test_util.h"
+#include "probebake/bake/relight.h"
 #include "probebake/engines/probe_textures.h"
 #include "probebake/sh/sh_basis.h"
 #include "probebake/sh/sh_convolution.h"
@@ -106,6 +107,28 @@ ProbeVolume DecodeTextures(const ProbeTextures& packed) {
       }
     }
   }
+  const int skyOrder = int(f.at("skyTransferOrder").number_value());
+  if (skyOrder > 0) {
+    v.skyTransferOrder = skyOrder;
+    const size_t columns = size_t(v.SkyCoeffCount());
+    v.skyTransfer.assign(9 * columns, std::vector<float>(3 * texels, 0));
+    const size_t nx = columns * size_t(v.grid.counts[0]), ny = 9 * size_t(v.grid.counts[1]);
+    for (size_t p = 0; p < texels; ++p) {
+      int i, j, k;
+      v.grid.Coords(int64_t(p), &i, &j, &k);
+      for (size_t r = 0; r < 9; ++r)
+        for (size_t c = 0; c < columns; ++c)
+          for (int ch = 0; ch < 3; ++ch)
+            v.skyTransfer[r * columns + c][3 * p + size_t(ch)] = HalfAt(
+                bin, at["sky_transfer"] +
+                         8 * ((size_t(k) * ny + 9 * size_t(j) + r) * nx + columns * size_t(i) + c) +
+                         2 * size_t(ch));
+    }
+  }
+  // Not in the textures; Relight wants every per-probe plane.
+  v.stdError.assign(texels, 0);
+  v.stdErrorL0.assign(texels, 0);
+  v.sampleCount.assign(texels, 0);
   return v;
 }
 
@@ -117,9 +140,15 @@ Vec3d ToFloats(const Vec3d& v) {
   return {float(v.x), float(v.y), float(v.z)};
 }
 
+Vec3d RandomDirection(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(0, 1);
+  const double cz = 2 * u(rng) - 1, phi = 2 * std::numbers::pi * u(rng), r = std::sqrt(1 - cz * cz);
+  return {r * std::cos(phi), r * std::sin(phi), cz};
+}
+
 // Points near the wall on both sides (2 cm to a quarter spacing, the leak tests' points) with
 // axis normals, and points throughout both rooms with random normals.
-std::vector<Query> Queries() {
+std::vector<Query> LeakQueries() {
   std::vector<Query> out;
   const Vec3d normals[] = {{1, 0, 0}, {-1, 0, 0}, {0, 0, 1}, {0, 1, 0}, {0, -1, 0}, {0, 0, -1}};
   for (double delta : {0.02, 0.05, 0.09, 0.125})
@@ -133,9 +162,7 @@ std::vector<Query> Queries() {
   while (out.size() < 1024) {
     const Vec3d x{-1.99 + 3.98 * u(rng), -0.99 + 1.98 * u(rng), 0.01 + 1.98 * u(rng)};
     if (x.x > -0.01 && x.x < kTwoRoomsWall + 0.01) continue;  // in the wall
-    const double cz = 2 * u(rng) - 1, phi = 2 * std::numbers::pi * u(rng),
-                 r = std::sqrt(1 - cz * cz);
-    out.push_back({ToFloats(x), ToFloats({r * std::cos(phi), r * std::sin(phi), cz})});
+    out.push_back({ToFloats(x), ToFloats(RandomDirection(rng))});
   }
   return out;
 }
@@ -247,7 +274,10 @@ float4 main(float4 position : SV_Position) : SV_Target {
 // A page that draws one fragment per query with `fragment` into an RGBA32F target, twice (row 0
 // with the visibility weights, row 1 without), and writes the pixels as JSON into <pre id="out">.
 std::string Page(const ProbeTextures& packed, const std::string& fragment,
-                 const std::vector<Query>& queries) {
+                 const std::vector<Query>& queries, const std::vector<Vec3d>& sky) {
+  std::vector<std::string> skyValues;
+  for (const Vec3d& c : sky)
+    for (int ch = 0; ch < 3; ++ch) skyValues.push_back(absl::StrFormat("%.17g", c[ch]));
   const std::string bin(packed.bin.begin(), packed.bin.end());
   return absl::StrCat(R"(<!doctype html><html><body><pre id="out">pending</pre>
 <script type="x-shader" id="fragment">)",
@@ -263,6 +293,8 @@ try {
                       FloatList(queries, false), R"(]);
   const normals = new Float32Array([)",
                       FloatList(queries, true), R"(]);
+  const sky = [)",
+                      absl::StrJoin(skyValues, ","), R"(];
   const n = positions.length / 4;
   const gl = document.createElement('canvas').getContext('webgl2');
   if (!gl) throw new Error('no WebGL2');
@@ -285,8 +317,8 @@ void main() { gl_Position = vec4(corner, 0.0, 1.0); }`;
   const uniforms = {};
   for (let i = 0; i < gl.getProgramParameter(program, gl.ACTIVE_UNIFORMS); i++) {
     const info = gl.getActiveUniform(program, i);
-    const name = info.name.replace(/^.*\./, '').replace(/^SPIRV_Cross_Combined/, '')
-                     .replace(/SPIRV_Cross_DummySampler$/, '');
+    const name = info.name.replace(/^.*\./, '').replace(/\[0\]$/, '')
+                     .replace(/^SPIRV_Cross_Combined/, '').replace(/SPIRV_Cross_DummySampler$/, '');
     uniforms[name] = { location: gl.getUniformLocation(program, info.name), type: info.type };
   }
   const setInt = (name, v) => {
@@ -325,7 +357,7 @@ void main() { gl_Position = vec4(corner, 0.0, 1.0); }`;
     textures[t.name] = tex;
   }
   for (const name of ['L0_validity', 'L1_r', 'L1_g', 'L1_b', 'L2_0', 'L2_1', 'L2_2', 'L2_3',
-                      'offset_filled', 'visibility'])
+                      'offset_filled', 'visibility', 'sky_transfer'])
     bind('pb' + name, gl.TEXTURE_3D, textures[name] || textures.L0_validity);
   for (const [name, data] of [['queryPositions', positions], ['queryNormals', normals]]) {
     const tex = gl.createTexture();
@@ -340,6 +372,10 @@ void main() { gl_Position = vec4(corner, 0.0, 1.0); }`;
   gl.uniform3iv(uniforms.pbGridCounts.location, header.counts);
   gl.uniform1f(uniforms.pbL2Scale.location, header.l2Scale);
   setInt('pbHasOffsets', textures.offset_filled ? 1 : 0);
+  const skyCoeffs = textures.sky_transfer ? (header.skyTransferOrder + 1) ** 2 : 0;
+  if (skyCoeffs !== sky.length / 3) throw new Error('the sky has ' + sky.length / 3 + ' coefficients, the textures ' + skyCoeffs);
+  setInt('pbSkyCoeffs', skyCoeffs);
+  if (skyCoeffs) gl.uniform3fv(uniforms.pbSky.location, sky);
   const target = gl.createTexture();
   gl.activeTexture(scratchUnit);
   gl.bindTexture(gl.TEXTURE_2D, target);
@@ -389,42 +425,116 @@ std::string RunInChromium(const TempDir& dir, const std::string& html) {
   return dom.substr(from + 14, to - from - 14);
 }
 
-// The leak scene's textures, baked once for both includes. Layers 2 cm into the wall:
-// relocation moves them out (offsets), the probes that cannot move are filled by dilation, and
-// the wall splits the cells the queries near it sit in.
+// An open scene under a sky baked with its sky transfer (Ls = 2): a floor, a box the sky and a
+// point light cast shadows from, relocation and visibility on. Its textures hold the point
+// light's radiance and T.
+BakeJob OpenSceneWithSkyTransfer() {
+  BakeJob job = MakeJob(2, 256, {-0.9, -0.9, 0.2});
+  job.grid.counts[0] = 4;
+  job.grid.counts[1] = 4;
+  job.grid.counts[2] = 3;
+  job.grid.spacing = {0.6, 0.6, 0.6};
+  job.settings.batches = 4;
+  job.settings.maxDepth = 4;
+  job.settings.visibility = true;
+  job.settings.relocationMaxOffset = 0.4;
+  job.settings.skyTransferOrder = 2;
+  const uint32_t grey = AddMaterial(&job.scene, {0.6, 0.6, 0.6});
+  const uint32_t red = AddMaterial(&job.scene, {0.7, 0.2, 0.1});
+  AddQuad(&job.scene, {-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}, grey);
+  // A box whose face x = -0.3 holds a probe layer 2 cm inside it (grid x = -0.3).
+  AddBox(&job.scene, {-0.32, -0.4, 0}, {0.4, 0.5, 0.9}, red, /*inward=*/false);
+  job.scene.lights.push_back(PointLight{{0.8, -0.8, 1.4}, {2, 2, 2}});
+  job.scene.environment = {Environment::Kind::kUniform, {0.3, 0.4, 0.6}, nullptr};
+  return job;
+}
+
+// Random points over the open scene's floor and in its air, outside the box, random normals.
+std::vector<Query> OpenSceneQueries() {
+  std::vector<Query> out;
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0, 1);
+  while (out.size() < 512) {
+    const bool floor = out.size() < 128;
+    const Vec3d x{-1.2 + 2.4 * u(rng), -1.2 + 2.4 * u(rng), floor ? 0.0 : 1.6 * u(rng)};
+    if (x.x > -0.33 && x.x < 0.41 && x.y > -0.41 && x.y < 0.51 && x.z < 0.91) continue;
+    Vec3d n = RandomDirection(rng);
+    if (floor) n = {0, 0, 1};
+    out.push_back({ToFloats(x), ToFloats(n)});
+  }
+  return out;
+}
+
+// A sky to relight with (order 2): a blue ambient and a warm lobe from low in the west.
+std::vector<Vec3d> RelightSky() {
+  double lobe[9];
+  HenyeyGreensteinLobe(2, 0.6, Normalize(Vec3d{-0.8, 0.2, 0.35}), lobe);
+  std::vector<Vec3d> sky(9);
+  for (int k = 0; k < 9; ++k) sky[size_t(k)] = Vec3d{3.0, 1.8, 0.9} * lobe[k];
+  sky[0] += Vec3d{0.2, 0.3, 0.5} * (2 * std::sqrt(std::numbers::pi));
+  return sky;
+}
+
+// The two scenes' textures, baked once for both includes.
 class ShaderInclude : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    BakeJob job = TwoRoomsWithThinWall(-1.98);
-    job.settings.samplesPerProbe = 256;
-    const ProbeVolume baked = BakeOrDie(job);
-    absl::StatusOr<ProbeTextures> textures = PackProbeTextures(baked, "x.bin");
-    ASSERT_TRUE(textures.ok()) << textures.status();
-    packed_ = new ProbeTextures(*std::move(textures));
+    // The leak scene with layers 2 cm into the wall: relocation moves them out (offsets), the
+    // probes that cannot move are filled by dilation, and the wall splits the cells the queries
+    // near it sit in.
+    BakeJob leak = TwoRoomsWithThinWall(-1.98);
+    leak.settings.samplesPerProbe = 256;
+    leak_ = Pack(BakeOrDie(leak));
+    open_ = Pack(BakeOrDie(OpenSceneWithSkyTransfer()));
   }
   static void TearDownTestSuite() {
-    delete packed_;
-    packed_ = nullptr;
+    delete leak_;
+    delete open_;
+    leak_ = open_ = nullptr;
+  }
+  static ProbeTextures* Pack(const ProbeVolume& volume) {
+    absl::StatusOr<ProbeTextures> textures = PackProbeTextures(volume, "x.bin");
+    EXPECT_TRUE(textures.ok()) << textures.status();
+    return textures.ok() ? new ProbeTextures(*std::move(textures)) : nullptr;
   }
 
   // Runs `fragment` on the queries in Chromium and compares with the core sampler on the
-  // decoded textures, visibility on and off.
-  void ExpectMatchesTheCore(const std::string& language, const std::string& fragment) {
+  // volume decoded from the textures (relit by the core for `sky` when it has a sky transfer),
+  // visibility on and off.
+  void ExpectMatchesTheCore(const std::string& language, const std::string& fragment,
+                            const ProbeTextures* packed, const std::vector<Query>& queries,
+                            const std::vector<Vec3d>& sky) {
     ASSERT_TRUE(HaveProgram("chromium"))
         << "chromium is missing: run scripts/install-deps.sh (Debian's chromium package)";
-    ASSERT_NE(packed_, nullptr);
+    ASSERT_NE(packed, nullptr);
     ASSERT_FALSE(fragment.empty());
-    const ProbeVolume volume = DecodeTextures(*packed_);
-    ASSERT_FALSE(volume.offset.empty());
-    ASSERT_FALSE(volume.visibility.empty());
+    const ProbeVolume decoded = DecodeTextures(*packed);
+    ASSERT_FALSE(decoded.offset.empty());
+    ASSERT_FALSE(decoded.visibility.empty());
     int moved = 0;
-    for (size_t p = 0; p < volume.filled.size(); ++p)
-      moved += volume.offset[3 * p] != 0 || volume.offset[3 * p + 1] != 0 ||
-               volume.offset[3 * p + 2] != 0;
+    for (size_t p = 0; p < decoded.filled.size(); ++p)
+      moved += decoded.offset[3 * p] != 0 || decoded.offset[3 * p + 1] != 0 ||
+               decoded.offset[3 * p + 2] != 0;
     EXPECT_GT(moved, 0) << "the scene must move probes for the offsets to be tested";
+    ASSERT_EQ(decoded.skyTransferOrder > 0, !sky.empty());
 
-    const std::vector<Query> queries = Queries();
-    const std::string text = RunInChromium(dir_, Page(*packed_, fragment, queries));
+    // What the shader blends, and the size of its terms: |local| + sum |T| |sky| per coefficient.
+    ProbeVolume volume = decoded, magnitudes = decoded;
+    if (!sky.empty()) {
+      absl::StatusOr<ProbeVolume> relit = Relight(decoded, sky);
+      ASSERT_TRUE(relit.ok()) << relit.status();
+      volume = *std::move(relit);
+      const size_t columns = size_t(decoded.SkyCoeffCount());
+      for (size_t r = 0; r < 9; ++r)
+        for (size_t v = 0; v < magnitudes.radiance[r].size(); ++v) {
+          double sum = std::abs(decoded.radiance[r][v]);
+          for (size_t c = 0; c < columns; ++c)
+            sum += std::abs(decoded.skyTransfer[r * columns + c][v] * sky[c][int(v % 3)]);
+          magnitudes.radiance[r][v] = float(sum);
+        }
+    }
+
+    const std::string text = RunInChromium(dir_, Page(*packed, fragment, queries, sky));
     ASSERT_EQ(text.rfind("[", 0), 0u) << text;
     const google::protobuf::Struct parsed = ParseJson("{\"v\":" + text + "}");
     const auto& values = parsed.fields().at("v").list_value();
@@ -439,7 +549,7 @@ class ShaderInclude : public ::testing::Test {
         const ProbeSample want = sampler.Sample(queries[i].position, queries[i].normal);
         const size_t at = 4 * (size_t(row) * n + i);
         EXPECT_EQ(values.values(int(at + 3)).number_value(), want.probes) << "query " << i;
-        const double magnitude = CellMagnitude(volume, queries[i]);
+        const double magnitude = CellMagnitude(magnitudes, queries[i]);
         for (int ch = 0; ch < 3; ++ch) {
           const double got = values.values(int(at) + ch).number_value();
           const double relative = std::abs(got - want.irradiance[ch]) / std::max(magnitude, 1e-30);
@@ -451,24 +561,41 @@ class ShaderInclude : public ::testing::Test {
               << (row ? " (no visibility)" : "");
         }
       }
-      std::printf("%s vs core, %zu queries%s: worst |difference| / magnitude %.3g\n",
-                  language.c_str(), n, row ? " without visibility" : " with visibility", worst);
+      std::printf("%s vs core, %zu queries%s%s: worst |difference| / magnitude %.3g\n",
+                  language.c_str(), n, sky.empty() ? "" : ", relit",
+                  row ? " without visibility" : " with visibility", worst);
     }
   }
 
-  static ProbeTextures* packed_;
+  static ProbeTextures* leak_;
+  static ProbeTextures* open_;
   TempDir dir_;
 };
-ProbeTextures* ShaderInclude::packed_ = nullptr;
+ProbeTextures* ShaderInclude::leak_ = nullptr;
+ProbeTextures* ShaderInclude::open_ = nullptr;
 
-TEST_F(ShaderInclude, GlslMatchesTheCoreSampler) {
-  ExpectMatchesTheCore("GLSL", GlslFragment());
+bool HaveHlslTools() {
+  return HaveProgram("glslangValidator") && HaveProgram("spirv-cross");
+}
+constexpr char kNoHlslTools[] =
+    "glslang-tools or spirv-cross is missing: run scripts/install-deps.sh";
+
+TEST_F(ShaderInclude, GlslMatchesTheCoreSamplerOnTheLeakScene) {
+  ExpectMatchesTheCore("GLSL", GlslFragment(), leak_, LeakQueries(), {});
 }
 
-TEST_F(ShaderInclude, HlslMatchesTheCoreSampler) {
-  ASSERT_TRUE(HaveProgram("glslangValidator") && HaveProgram("spirv-cross"))
-      << "glslang-tools or spirv-cross is missing: run scripts/install-deps.sh";
-  ExpectMatchesTheCore("HLSL", HlslFragment(dir_));
+TEST_F(ShaderInclude, HlslMatchesTheCoreSamplerOnTheLeakScene) {
+  ASSERT_TRUE(HaveHlslTools()) << kNoHlslTools;
+  ExpectMatchesTheCore("HLSL", HlslFragment(dir_), leak_, LeakQueries(), {});
+}
+
+TEST_F(ShaderInclude, GlslRelightsAsTheCoreDoes) {
+  ExpectMatchesTheCore("GLSL", GlslFragment(), open_, OpenSceneQueries(), RelightSky());
+}
+
+TEST_F(ShaderInclude, HlslRelightsAsTheCoreDoes) {
+  ASSERT_TRUE(HaveHlslTools()) << kNoHlslTools;
+  ExpectMatchesTheCore("HLSL", HlslFragment(dir_), open_, OpenSceneQueries(), RelightSky());
 }
 
 }  // namespace

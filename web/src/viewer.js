@@ -23,6 +23,9 @@ const textureUniforms = {
   // (relocation) and visibility moments when the volume has them.
   pbHasOffsets: { value: header.textures.some((t) => t.name === 'offset_filled') },
   pbHasVisibility: { value: header.textures.some((t) => t.name === 'visibility') },
+  // A volume baked with a sky transfer is shown with its local lights only: relight it first
+  // (`probebake relight`) to see it under a sky.
+  pbSkyCoeffs: { value: 0 },
 };
 for (const t of header.textures) {
   const half = t.format === 'RGBA16F', float = t.format === 'RGBA32F';
@@ -40,7 +43,7 @@ for (const t of header.textures) {
 }
 // The optional textures' samplers still need a 3D texture bound (WebGL refuses a draw whose
 // samplers of different kinds share a unit); the flags above keep the include from reading them.
-for (const name of ['pboffset_filled', 'pbvisibility'])
+for (const name of ['pboffset_filled', 'pbvisibility', 'pbsky_transfer'])
   textureUniforms[name] ||= { value: textureUniforms.pbL0_validity.value };
 
 // three.js's SphericalHarmonics3.getIrradianceAt, in GLSL: E(n) from radiance coefficients.

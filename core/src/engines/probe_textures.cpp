@@ -55,7 +55,12 @@ absl::StatusOr<ProbeTextures> PackProbeTextures(const ProbeVolume& volume,
   const size_t core = 4 * halfBytes + 4 * byteBytes;
   const size_t offsetAt = core, momentsAt = core + (offsets ? halfBytes : 0);
   const size_t momentsBytes = moments ? texels * kVisibilityTexels * 16 : 0;
-  out.bin.assign(momentsAt + momentsBytes, 0);
+  // Sky transfer: rows r < 9 (what the L2 textures hold) by the sky's S columns.
+  const int skyCoeffs = volume.skyTransferOrder > 0 ? volume.SkyCoeffCount() : 0;
+  const int transferRows = std::min(volume.CoeffCount(), 9);
+  const size_t transferAt = momentsAt + momentsBytes;
+  const size_t transferBytes = texels * size_t(skyCoeffs) * 9 * 8;
+  out.bin.assign(transferAt + transferBytes, 0);
   // Unusable texels: half zeros are 0 bits; L2 bytes encode 0 as 128.
   std::fill(out.bin.begin() + 4 * halfBytes, out.bin.begin() + core, uint8_t{128});
   if (offsets)
@@ -77,6 +82,22 @@ absl::StatusOr<ProbeTextures> PackProbeTextures(const ProbeVolume& volume,
           PutFloat(&out.bin, at + 4 * size_t(ch), volume.visibility[size_t(t)][3 * probe + ch]);
       }
     }
+  if (skyCoeffs > 0)
+    for (const EngineProbe& p : *probes) {
+      if (!p.usable) continue;
+      const size_t probe = static_cast<size_t>(p.index);
+      const size_t nx = size_t(skyCoeffs) * size_t(g.counts[0]), ny = 9 * size_t(g.counts[1]);
+      for (int r = 0; r < transferRows; ++r)
+        for (int c = 0; c < skyCoeffs; ++c) {
+          const size_t x = size_t(skyCoeffs) * size_t(p.i) + size_t(c);
+          const size_t y = 9 * size_t(p.j) + size_t(r);
+          const size_t at = transferAt + 8 * ((size_t(p.k) * ny + y) * nx + x);
+          const std::vector<float>& plane =
+              volume.skyTransfer[size_t(r) * size_t(skyCoeffs) + size_t(c)];
+          for (int ch = 0; ch < 3; ++ch)
+            PutHalf(&out.bin, at + 2 * size_t(ch), plane[3 * probe + size_t(ch)]);
+        }
+    }
   for (const EngineProbe& p : *probes) {
     if (!p.usable) continue;
     const size_t t = static_cast<size_t>(p.index);
@@ -97,10 +118,11 @@ absl::StatusOr<ProbeTextures> PackProbeTextures(const ProbeVolume& volume,
   absl::StrAppendFormat(&h,
                         "{\"format\":\"probebake-probe-textures\",\"version\":3,"
                         "\"counts\":[%d,%d,%d],\"origin\":[%.17g,%.17g,%.17g],"
-                        "\"spacing\":[%.17g,%.17g,%.17g],\"l2Scale\":%.9g,\"bin\":\"%s\","
-                        "\"textures\":[",
+                        "\"spacing\":[%.17g,%.17g,%.17g],\"l2Scale\":%.9g,"
+                        "\"skyTransferOrder\":%d,\"bin\":\"%s\",\"textures\":[",
                         g.counts[0], g.counts[1], g.counts[2], g.origin.x, g.origin.y, g.origin.z,
-                        g.spacing.x, g.spacing.y, g.spacing.z, out.l2Scale, binName);
+                        g.spacing.x, g.spacing.y, g.spacing.z, out.l2Scale,
+                        skyCoeffs > 0 ? volume.skyTransferOrder : 0, binName);
   const char* names[] = {"L0_validity", "L1_r", "L1_g", "L1_b", "L2_0", "L2_1", "L2_2", "L2_3"};
   size_t offset = 0;
   for (int i = 0; i < 8; ++i) {
@@ -121,6 +143,12 @@ absl::StatusOr<ProbeTextures> PackProbeTextures(const ProbeVolume& volume,
                           "\"bytes\":%d,\"size\":[%d,%d,%d]}",
                           offset, momentsBytes, kVisibilityMapSize * g.counts[0],
                           kVisibilityMapSize * g.counts[1], g.counts[2]);
+  if (skyCoeffs > 0)
+    absl::StrAppendFormat(&h,
+                          ",{\"name\":\"sky_transfer\",\"format\":\"RGBA16F\",\"offset\":%d,"
+                          "\"bytes\":%d,\"size\":[%d,%d,%d]}",
+                          transferAt, transferBytes, skyCoeffs * g.counts[0], 9 * g.counts[1],
+                          g.counts[2]);
   h += "]}\n";
   return out;
 }

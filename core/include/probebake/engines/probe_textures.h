@@ -21,6 +21,11 @@
 //                 texel (column c, row r) (probebake/volume/visibility_map.h) is texel
 //                 (8 i + c, 8 j + r, k), holding (mean 1/t, mean 1/t^2, rays, 0); 32-bit
 //                 because 1/t^2 of a near hit overflows half
+//   sky_transfer   RGBA16F  with a sky transfer of order Ls (S = (Ls+1)^2 columns), an atlas of
+//                 S nx x 9 ny x nz texels: T[r][s] of probe (i, j, k) (r < 9, the radiance
+//                 coefficients the L0..L2 textures hold) is texel (S i + s, 9 j + r, k), holding
+//                 (r, g, b, 0). The L0..L2 textures then hold the local lights only: a shader
+//                 adds sum_s T[r][s] sky_s (docs/engines.md, probebake_probes.glsl)
 // Coefficients are radiance SH in probebake's frame and basis (sh_basis.h): a shader maps its
 // normal into probebake's frame first (three: (x, -z, y) of three's; Unity: (x, z, y) of Unity's).
 // Probes that are inactive or unusable (validity < 0.5 and not filled) hold 0 everywhere, alpha 0
@@ -29,9 +34,10 @@
 // round(255 (0.5 + v / (2 l2Scale))), which reads 0 as l2Scale / 255; 1 had no optional textures),
 // "counts": [nx, ny, nz],
 //   "origin": [x, y, z], "spacing": [x, y, z] (probebake frame; texel centres are probes),
-//   "l2Scale": s (max |L2| over usable probes, 1 if all are 0), "bin": "<file name>",
+//   "l2Scale": s (max |L2| over usable probes, 1 if all are 0), "skyTransferOrder": Ls (0:
+//   none), "bin": "<file name>",
 //   "textures": [{"name", "format": "RGBA16F" | "RGBA8" | "RGBA32F", "offset", "bytes"}, ...]}
-//   ("offset" in bytes; the atlas also has "size": [8 nx, 8 ny, nz]).
+//   ("offset" in bytes; the atlases also have "size").
 #pragma once
 
 #include <cstdint>
