@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Bakes the bundled demo scene end to end: installs what is missing, builds, starts a
 # probebake-server on a free loopback port with a fresh data folder, submits
-# tests/data/demo/demo.json with the probebake CLI (uploading its mesh and sky as blobs), waits,
-# fetches the volume, inspects it and renders two irradiance slices. Outputs go to $OUT_DIR
-# (default: out/).
+# tests/data/demo/demo-gltf.json with the probebake CLI (uploading its glTF level, the files it
+# references and the sky as blobs), waits, fetches the volume, inspects it and renders two
+# irradiance slices and a 3D view. Outputs go to $OUT_DIR (default: out/).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
@@ -34,11 +34,11 @@ done
 SERVER=127.0.0.1:$(cat "$WORK/port")
 echo "demo: probebake-server listening on $SERVER (log: $OUT/demo-server.log)"
 
-"$BIN/probebake" submit tests/data/demo/demo.json --server "$SERVER" -o "$OUT/demo.vdb"
+"$BIN/probebake" submit tests/data/demo/demo-gltf.json --server "$SERVER" -o "$OUT/demo.vdb"
 "$BIN/probebake" inspect "$OUT/demo.vdb"
 "$BIN/probebake" inspect "$OUT/demo.vdb" --slice z=1.0 -o "$OUT/demo-slice-z1.png"
 "$BIN/probebake" inspect "$OUT/demo.vdb" --slice x=0.0 -o "$OUT/demo-slice-x0.png"
-"$BIN/probebake" view "$OUT/demo.vdb" --scene tests/data/demo/demo.json -o "$OUT/demo.html"
+"$BIN/probebake" view "$OUT/demo.vdb" --scene tests/data/demo/demo-gltf.json -o "$OUT/demo.html"
 
 cat <<MSG
 

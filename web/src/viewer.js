@@ -76,11 +76,20 @@ for (const mesh of data.meshes) {
   geometry.setAttribute('position', new THREE.Float32BufferAttribute(mesh.positions, 3));
   geometry.setIndex(mesh.indices);
   geometry.computeVertexNormals();
+  // A cutout (a trellis, leaves) is drawn translucent by the share of its texels that stay.
+  const opacity = mesh.opacity ?? 1;
   const material = new THREE.ShaderMaterial({
     glslVersion: THREE.GLSL3,
     // Front faces only: a closed room seen from outside shows its inside (walls wound inward).
-    side: THREE.FrontSide,
-    uniforms: { ...textureUniforms, exposure: exposureUniform, albedo: { value: new THREE.Vector3(...mesh.albedo) } },
+    side: opacity < 1 ? THREE.DoubleSide : THREE.FrontSide,
+    transparent: opacity < 1,
+    depthWrite: opacity >= 1,
+    uniforms: {
+      ...textureUniforms,
+      exposure: exposureUniform,
+      albedo: { value: new THREE.Vector3(...mesh.albedo) },
+      opacity: { value: opacity },
+    },
     vertexShader: /* glsl */ `
       out vec3 vWorld;
       void main() {
@@ -93,6 +102,7 @@ for (const mesh of data.meshes) {
       precision highp sampler3D;
       uniform vec3 albedo;
       uniform float exposure;
+      uniform float opacity;
       in vec3 vWorld;
       out vec4 outColor;
       ${shGlsl}
@@ -108,7 +118,7 @@ for (const mesh of data.meshes) {
           outColor = vec4(vec3(0.3 + 0.1 * check), 1.0);
           return;
         }
-        outColor = vec4(srgbEncode(albedo * max(e.rgb, 0.0) / 3.14159265358979 * exposure), 1.0);
+        outColor = vec4(srgbEncode(albedo * max(e.rgb, 0.0) / 3.14159265358979 * exposure), opacity);
       }`,
   });
   const object = new THREE.Mesh(geometry, material);

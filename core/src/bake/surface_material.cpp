@@ -147,4 +147,31 @@ double MeanLuminance(const TextureMap& map) {
   return texels > 0 ? sum / double(texels) : 0;
 }
 
+Vec3d MeanAlbedo(const Material& material) {
+  if (!material.albedoMap.image) return material.albedo;
+  const Texture& t = *material.albedoMap.image;
+  const std::array<double, 256>& srgb = SrgbToLinear();
+  Vec3d sum{0, 0, 0};
+  const size_t texels = size_t(t.width) * size_t(t.height);
+  for (size_t k = 0; k < texels; ++k)
+    for (int c = 0; c < 3; ++c) {
+      const uint8_t v = t.rgba[4 * k + size_t(c)];
+      sum[c] += material.albedoMap.srgb ? srgb[v] : v / 255.0;
+    }
+  return texels > 0 ? material.albedo * sum / double(texels) : material.albedo;
+}
+
+double KeptFraction(const Material& material) {
+  if (!material.HasCutout()) return 1;
+  const TextureMap& map = material.coverageMap.image ? material.coverageMap : material.albedoMap;
+  if (!map.image) return material.coverage >= material.alphaCutoff ? 1 : 0;
+  const Texture& t = *map.image;
+  const int channel = &map == &material.albedoMap || t.hasAlpha ? 3 : 0;
+  const size_t texels = size_t(t.width) * size_t(t.height);
+  size_t kept = 0;
+  for (size_t k = 0; k < texels; ++k)
+    kept += material.coverage * (t.rgba[4 * k + size_t(channel)] / 255.0) >= material.alphaCutoff;
+  return texels > 0 ? double(kept) / double(texels) : 1;
+}
+
 }  // namespace probebake

@@ -30,5 +30,11 @@ Vec3d EmissionAt(const Material& material, const TriangleMesh& mesh, uint32_t pr
                  double bv);
 // The mean over texels of the luminance of `map`'s linear RGB (a textured emitter's power).
 double MeanLuminance(const TextureMap& map);
+// For displays (the viewer), not for baking: material.albedo times the mean over texels of
+// albedoMap's linear RGB (vertex colours not included); and the fraction of a cutout's texels that
+// stay (coverage of the albedo map's alpha, or of the coverage map, at or above alphaCutoff; 1
+// without a cutout, material.coverage against the cutoff without a map).
+Vec3d MeanAlbedo(const Material& material);
+double KeptFraction(const Material& material);
 
 }  // namespace probebake

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "../bake/surface_material.h"
 #include "absl/strings/escaping.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -77,10 +78,13 @@ absl::StatusOr<std::string> ViewerPageHtml(const ProbeVolume& volume, const Scen
     for (size_t m = 0; m < scene->meshes.size(); ++m) {
       const TriangleMesh& mesh = scene->meshes[m];
       if (m) data += ",";
+      // One colour per mesh: a texture's mean, and a cutout drawn translucent by the share of
+      // its texels that stay.
+      const bool known = mesh.material < scene->materials.size();
       data += "\n{\"albedo\":";
-      AppendVec(&data, mesh.material < scene->materials.size()
-                           ? scene->materials[mesh.material].albedo
-                           : Vec3d{0.8, 0.8, 0.8});
+      AppendVec(&data, known ? MeanAlbedo(scene->materials[mesh.material]) : Vec3d{0.8, 0.8, 0.8});
+      absl::StrAppendFormat(&data, ",\"opacity\":%.4g",
+                            known ? KeptFraction(scene->materials[mesh.material]) : 1.0);
       data += ",\"positions\":[";
       for (size_t v = 0; v < mesh.positions.size(); ++v) {
         const Vec3d t = axes * mesh.positions[v];

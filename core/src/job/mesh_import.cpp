@@ -285,7 +285,11 @@ absl::StatusOr<FileMaterial> ReduceMaterial(const aiMaterial& material, const st
   }
   for (double* c : {&out.emission.x, &out.emission.y, &out.emission.z})
     if (!(*c >= 0) || !std::isfinite(*c)) *c = 0;
-  if (clamped)
+  // A colour texture's factor is 1 by default in glTF (and MTL's Kd often is): the texels,
+  // at most 1, are the albedo, and the clamp changes a white texel by 2^-20, not worth a warning.
+  const bool textured = material.GetTextureCount(aiTextureType_BASE_COLOR) > 0 ||
+                        material.GetTextureCount(aiTextureType_DIFFUSE) > 0;
+  if (clamped && !textured)
     Logger("job")->warn("{}: material {} has an albedo of 1 or more; clamped to {}", where,
                         Quoted(out.name), kBelowOne);
   if (textures == nullptr) return file;
