@@ -30,11 +30,10 @@ for t in "${TARGETS[@]}"; do
   maxLen=65536 extra=()
   # a small volume's metadata alone is ~100 kB; a hand-over with one decoded texture ~180 kB
   case "$t" in volume_read_fuzz | mesh_imports_fuzz) maxLen=262144 ;; esac
-  # assimp crashes on some files (the asset-check child contains that) and OpenVDB allocates and
-  # reads whatever sizes a damaged file declares (docs/hardening.md): these two targets go on
-  # past such inputs and list them, to be triaged by their stacks.
+  # assimp crashes on some files (the asset-check child contains that; docs/hardening.md): this
+  # target goes on past such inputs and lists them, to be triaged by their stacks.
   case "$t" in
-    mesh_import_fuzz | volume_read_fuzz)
+    mesh_import_fuzz)
       extra=(-fork=1 -ignore_crashes=1 -ignore_ooms=1 -ignore_timeouts=1) ;;
   esac
   echo "== $t: ${SECONDS_PER_TARGET} s"

@@ -5,6 +5,9 @@
 // BM_DemoBakeSkyScale bakes the same job with each texel of its sky repeated k x k times: the
 // same light, in tables k^2 times as large, so the difference is what a large map costs (building
 // its tables once per bake, and reading them from memory per sample).
+// BM_LoftBake bakes the authored demo level (demo-gltf.json: textures, a cutout trellis, a KHR
+// lamp) as authored and with every material made constant (its texture's mean colour, no cutout):
+// the same geometry, lights and grid, so rays/s is what textures and cutouts cost per ray.
 //
 //   probebake_bake_bench [--benchmark_filter=...] [--benchmark_repetitions=N]
 #include <benchmark/benchmark.h>
@@ -14,6 +17,7 @@
 #include <memory>
 #include <string>
 
+#include "core/src/bake/surface_material.h"
 #include "probebake/bake/bake.h"
 #include "probebake/base/log.h"
 #include "probebake/job/asset_source.h"
@@ -27,9 +31,11 @@
 namespace probebake {
 namespace {
 
-// The demo job with a small grid and `samples` samples per probe; aborts the benchmark on error.
-BakeJob DemoJob(int64_t samples, v1::BakeSettings::Estimator estimator) {
-  const std::string path = std::string(PROBEBAKE_TEST_DATA_DIR) + "/demo/demo.json";
+// A demo job (`file` in tests/data/demo) with a small grid and `samples` samples per probe; aborts
+// the benchmark on error.
+BakeJob DemoJob(int64_t samples, v1::BakeSettings::Estimator estimator,
+                const std::string& file = "demo.json") {
+  const std::string path = std::string(PROBEBAKE_TEST_DATA_DIR) + "/demo/" + file;
   absl::StatusOr<v1::JobSpec> spec = ReadJobFile(path);
   if (!spec.ok()) {
     std::fprintf(stderr, "%s\n", std::string(spec.status().message()).c_str());
@@ -115,6 +121,26 @@ void BM_DemoBakeSkyScale(benchmark::State& state) {
   TimeBakes(state, job, 1);
 }
 
+// Args: constant (0: as authored, 1: every material constant), threads.
+void BM_LoftBake(benchmark::State& state) {
+  QuietLogs();
+  BakeJob job = DemoJob(1024, v1::BakeSettings::NEE_MIS, "demo-gltf.json");
+  int textured = 0, cutouts = 0;
+  for (Material& m : job.scene.materials) {
+    textured += m.AlbedoVaries();
+    cutouts += m.HasCutout();
+    if (state.range(0) == 0) continue;
+    m.albedo = MeanAlbedo(m);
+    m.albedoMap = m.coverageMap = TextureMap{};
+    m.vertexColors = false;
+    m.alphaCutoff = 0;
+  }
+  state.SetLabel(state.range(0) ? "constant albedo, no cutout"
+                                : std::to_string(textured) + " textured materials, " +
+                                      std::to_string(cutouts) + " cutout");
+  TimeBakes(state, job, int(state.range(1)));
+}
+
 void BM_DemoBakeNeeMis(benchmark::State& state) {
   RunBake(state, v1::BakeSettings::NEE_MIS);
 }
@@ -131,6 +157,11 @@ BENCHMARK(BM_DemoBakeNeeMis)
 BENCHMARK(BM_DemoBakeDirectionSampling)
     ->Args({1024, 1})
     ->ArgNames({"samples", "threads"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LoftBake)
+    ->ArgsProduct({{0, 1}, {1, 2}})
+    ->ArgNames({"constant", "threads"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 // Args: k, the sky's upsampling (1: the bundled 128 x 64; 16: 2048 x 1024), and samples per probe;
