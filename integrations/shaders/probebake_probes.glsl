@@ -55,7 +55,7 @@ uniform vec3 pbSky[PB_MAX_SKY_COEFFS];
 const int pbVisSize = 8;        // octahedral texels per side of a probe's visibility map
 const float pbCrush = 0.2;      // DDGI's crushing threshold
 const float pbMinWeight = 1e-30;
-const float pbMinRelativeVariance = 1e-4;
+const float pbMinRelativeVariance = 6e-3;
 
 // The 9 RGB radiance coefficients of probe p (relit when pbSkyCoeffs > 0).
 void pbProbeSh(ivec3 p, out vec3 c[9]) {
@@ -126,7 +126,7 @@ ivec2 pbWrappedTexel(ivec2 t) {
 // Visibility in [0, 1] of point x from probe `probe` baked at probePos: the moments of the four
 // texels around the direction to x, each texel's 1/t scaled by 1 / |its centre direction|_1 so a
 // plane stays linear in the map, blended bilinearly and scaled back by |direction|_1; the
-// variance less what the trend between the texels explains, at least (1% of the mean)^2; then
+// variance less what the trend between the texels explains, at least (7.7% of the mean)^2; then
 // 1 where 1/|x - probePos| >= mean, else Chebyshev's one-sided bound, cubed.
 float pbProbeVisibility(ivec3 probe, vec3 probePos, vec3 x) {
   vec3 fromProbe = x - probePos;

@@ -39,7 +39,7 @@ float3 pbSky[PB_MAX_SKY_COEFFS];   // the sky's radiance SH (probebake's basis a
 static const int pbVisSize = 8;
 static const float pbCrush = 0.2;
 static const float pbMinWeight = 1e-30;
-static const float pbMinRelativeVariance = 1e-4;
+static const float pbMinRelativeVariance = 6e-3;
 
 void pbProbeSh(int3 p, out float3 c[9]) {
   c[0] = pbL0_validity.Load(int4(p, 0)).rgb;

@@ -204,11 +204,13 @@ double CellMagnitude(const ProbeVolume& volume, const Query& q) {
 // - without visibility the weights are trilinear x backface from float positions: a cell
 //   coordinate off by ~u (|x| + |origin|) / spacing + u g <= 16 u = 1e-6, each of 8 weights off
 //   by <= 3e-6, moving E by <= 2 x 8 x 3e-6 = 5e-5; E(n)'s nine terms add < 20 u. Bound 1e-4.
-// - with visibility, Chebyshev's variance is m1 - m0^2 (and less the texels' trend), both ~ s^2,
-//   floored at 1e-4 mean^2: float's rounding of them, 2u s^2, is amplified by up to 1e4 in the
-//   variance, passes into p = var / (var + excess^2) at most 1:1, is tripled by the cube and
-//   tripled again by the crush: 9 x 2u x 1e4 = 1.1e-2 relative in a weight, 2.2e-2 in the blend
-//   (for texels whose mean square is near the blend's, as the bilinear taps of one surface are).
+// - with visibility, Chebyshev's variance is m1 - m0^2 less the texels' trend, all of the order
+//   of the largest texel's s^2, and floored at 6e-3 mean^2: float's rounding of them, 2u s_max^2,
+//   is amplified by s_max^2 / (6e-3 mean^2) in the variance. The bilinear taps of one point hold
+//   surfaces within 8x of each other in s here (a wall 0.25 m away beside the room's far side), so
+//   by up to 64 / 6e-3 = 1.1e4; it passes into p = var / (var + excess^2) at most 1:1, is tripled
+//   by the cube and tripled again by the crush: 9 x 2u x 1.1e4 = 1.1e-2 relative in a weight,
+//   2.2e-2 in the blend.
 constexpr double kTolerance = 1e-4;
 constexpr double kVisibilityTolerance = 2.2e-2;
 
