@@ -2,15 +2,17 @@
 // few meshes of many primitives (the way a DCC tool exports a level built from a kit of props),
 // written to a temporary folder and read as a job reads it.
 //
-// BM_LevelImport times BuildBakeJob (assimp's import and the flattening of every node's meshes
-// into world-space triangles); BM_LevelTracerBuild times the Embree scene of the imported job
-// (TracerScene::Build, the BVH over every triangle). Both report the triangles the bake holds
-// against the distinct triangles of the file (what one Embree geometry per mesh plus instances
-// would hold), the flattened geometry's bytes and the growth of the peak resident memory during
-// an iteration.
+// BM_LevelImport times BuildBakeJob (assimp's import; every mesh moved into world space, or what
+// several nodes place kept once with their placements: JobLimits::flattenUpToTriangles decides,
+// set here to flatten or to instance); BM_LevelTracerBuild
+// times the Embree scene of the imported job (TracerScene::Build: one BVH per instanced mesh, one
+// instance per placement, a top-level BVH). Both report the triangles stored and placed against
+// the file's own, the stored geometry's bytes and the resident memory the result holds (RSS with
+// it alive less RSS before, after malloc_trim has returned freed memory to the system).
 //
 //   probebake_scene_bench [--benchmark_filter=...]
 #include <benchmark/benchmark.h>
+#include <malloc.h>
 #include <stdlib.h>
 
 #include <algorithm>
@@ -20,9 +22,11 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/src/bake/tracer_scene.h"
+#include "probebake/bake/bake.h"
 #include "probebake/base/log.h"
 #include "probebake/job/asset_source.h"
 #include "probebake/job/job.h"
@@ -130,10 +134,13 @@ struct TempDir {
   ~TempDir() { std::filesystem::remove_all(path); }
 };
 
-absl::StatusOr<BakeJob> ImportLevel(const std::string& jobPath) {
+// The level's job, its repeated meshes instanced (`instanced`) or every mesh moved into world
+// space (JobLimits::flattenUpToTriangles).
+absl::StatusOr<BakeJob> ImportLevel(const std::string& jobPath, bool instanced) {
   absl::StatusOr<v1::JobSpec> spec = ReadJobFile(jobPath);
   if (!spec.ok()) return spec.status();
-  const JobLimits limits;
+  JobLimits limits;
+  limits.flattenUpToTriangles = instanced ? 0 : limits.maxTriangles;
   return BuildBakeJob(*spec, LocalAssetSource(JobFileDir(jobPath), "", limits.maxAssetBytes),
                       limits);
 }
@@ -145,51 +152,61 @@ int64_t SceneGeometryBytes(const Scene& scene) {
   return bytes;
 }
 
-void Report(benchmark::State& state, const Scene& scene, int64_t distinct, int64_t peakGrowth) {
-  int64_t triangles = 0;
-  for (const TriangleMesh& mesh : scene.meshes) triangles += int64_t(mesh.TriangleCount());
-  state.counters["triangles"] = double(triangles);
+void Report(benchmark::State& state, const Scene& scene, int64_t distinct, int64_t held) {
+  int64_t triangles = 0, placed = 0, instanced = 0;
+  for (const TriangleMesh& mesh : scene.meshes) {
+    triangles += int64_t(mesh.TriangleCount());
+    placed += int64_t(mesh.PlacedTriangleCount());
+    instanced += !mesh.placements.empty();
+  }
+  state.counters["stored_triangles"] = double(triangles);
+  state.counters["placed_triangles"] = double(placed);
   state.counters["file_triangles"] = double(distinct);
   state.counters["geometry_MiB"] = double(SceneGeometryBytes(scene)) / (1 << 20);
-  state.counters["peak_growth_MiB"] = double(peakGrowth) / (1 << 20);
-  state.SetLabel(std::to_string(scene.meshes.size()) + " meshes after flattening");
+  state.counters["held_MiB"] = double(held) / (1 << 20);
+  state.SetLabel(std::to_string(scene.meshes.size()) + " meshes, " + std::to_string(instanced) +
+                 " instanced");
 }
 
 void BM_LevelImport(benchmark::State& state) {
   Logger("job")->set_level(spdlog::level::warn);
   const TempDir dir;
   const Level level = WriteLevel(dir.path, int(state.range(0)));
-  int64_t peakGrowth = 0;
+  int64_t held = 0;
   absl::StatusOr<BakeJob> job;
   for (auto _ : state) {
     state.PauseTiming();
     job = absl::StatusOr<BakeJob>();
-    bench::ResetPeakRss();
+    malloc_trim(0);
     const int64_t before = bench::CurrentRssBytes();
     state.ResumeTiming();
-    job = ImportLevel(level.jobPath);
+    job = ImportLevel(level.jobPath, state.range(1) != 0);
     if (!job.ok()) {
       state.SkipWithError(std::string(job.status().message()).c_str());
       return;
     }
-    peakGrowth = std::max(peakGrowth, bench::PeakRssBytes() - before);
+    state.PauseTiming();
+    malloc_trim(0);
+    held = std::max(held, bench::CurrentRssBytes() - before);
+    state.ResumeTiming();
   }
-  Report(state, job->scene, level.distinctTriangles, peakGrowth);
+  Report(state, job->scene, level.distinctTriangles, held);
 }
 
+// Args: nodes; instanced (1) or flattened (0).
 void BM_LevelTracerBuild(benchmark::State& state) {
   Logger("job")->set_level(spdlog::level::warn);
   const TempDir dir;
   const Level level = WriteLevel(dir.path, int(state.range(0)));
-  const absl::StatusOr<BakeJob> job = ImportLevel(level.jobPath);
+  absl::StatusOr<BakeJob> job = ImportLevel(level.jobPath, state.range(1) != 0);
   if (!job.ok()) {
     state.SkipWithError(std::string(job.status().message()).c_str());
     return;
   }
-  int64_t peakGrowth = 0;
+  int64_t held = 0;
   for (auto _ : state) {
     state.PauseTiming();
-    bench::ResetPeakRss();
+    malloc_trim(0);
     const int64_t before = bench::CurrentRssBytes();
     state.ResumeTiming();
     absl::StatusOr<std::unique_ptr<TracerScene>> tracer =
@@ -198,27 +215,55 @@ void BM_LevelTracerBuild(benchmark::State& state) {
       state.SkipWithError(std::string(tracer.status().message()).c_str());
       return;
     }
-    peakGrowth = std::max(peakGrowth, bench::PeakRssBytes() - before);
     state.PauseTiming();
+    held = std::max(held, bench::CurrentRssBytes() - before);
     tracer->reset();
     state.ResumeTiming();
   }
-  Report(state, job->scene, level.distinctTriangles, peakGrowth);
+  Report(state, job->scene, level.distinctTriangles, held);
 }
 
-// Arg: nodes (each instancing one of 50 meshes of 40 primitives).
+// Args: nodes; instanced (1) or flattened (0). Whole bakes of the level's 4 probes at 65536 samples
+// each under a uniform sky, 1 thread: what the second level of traversal costs per ray.
+void BM_LevelBake(benchmark::State& state) {
+  Logger("job")->set_level(spdlog::level::warn);
+  Logger("bake")->set_level(spdlog::level::warn);
+  const TempDir dir;
+  const Level level = WriteLevel(dir.path, int(state.range(0)));
+  absl::StatusOr<BakeJob> job = ImportLevel(level.jobPath, state.range(1) != 0);
+  if (!job.ok()) {
+    state.SkipWithError(std::string(job.status().message()).c_str());
+    return;
+  }
+  job->settings.samplesPerProbe = 65536;
+  BakeOptions options;
+  options.threads = 1;
+  int64_t rays = 0;
+  for (auto _ : state) {
+    absl::StatusOr<ProbeVolume> volume = Bake(*job, options);
+    if (!volume.ok()) {
+      state.SkipWithError(std::string(volume.status().message()).c_str());
+      return;
+    }
+    rays += volume->stats.rays;
+  }
+  state.counters["rays/s"] = benchmark::Counter(double(rays), benchmark::Counter::kIsRate);
+}
+
+// Args: nodes (each placing one of 50 meshes of 40 primitives); instanced (1) or flattened (0).
 BENCHMARK(BM_LevelImport)
-    ->Arg(100)
-    ->Arg(400)
-    ->Arg(1600)
-    ->ArgName("nodes")
+    ->ArgsProduct({{100, 400, 1600}, {1, 0}})
+    ->ArgNames({"nodes", "instanced"})
+    ->UseRealTime()
+    ->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LevelBake)
+    ->ArgsProduct({{400}, {1, 0}})
+    ->ArgNames({"nodes", "instanced"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_LevelTracerBuild)
-    ->Arg(100)
-    ->Arg(400)
-    ->Arg(1600)
-    ->ArgName("nodes")
+    ->ArgsProduct({{100, 400, 1600}, {1, 0}})
+    ->ArgNames({"nodes", "instanced"})
     ->UseRealTime()
     ->Unit(benchmark::kMillisecond);
 

@@ -1,10 +1,12 @@
 #include "mesh_emitter.h"
+#include "probebake/base/check.h"
 
 #include <array>
 #include <cmath>
 #include <limits>
 #include <vector>
 
+#include "probebake/base/check.h"
 #include "probebake/sampling/warps.h"
 #include "surface_material.h"
 
@@ -15,6 +17,8 @@ std::optional<MeshEmitter> MeshEmitter::Build(const Scene& scene, const TracerSc
   const TriangleMesh& m = scene.meshes[mesh];
   const Vec3d& emission = scene.materials[m.material].emission;
   if (MaxComponent(emission) <= 0 || m.TriangleCount() == 0) return std::nullopt;
+  // The job builder places an emissive mesh's copies in world space (scene.h).
+  PB_CHECK(m.placements.empty());
   std::vector<double> areas(m.TriangleCount());
   for (size_t t = 0; t < m.TriangleCount(); ++t) {
     const Vec3d& a = m.positions[m.indices[3 * t]];

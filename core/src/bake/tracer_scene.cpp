@@ -148,10 +148,13 @@ struct TracerScene::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
   std::vector<uint32_t> meshOfGeom;
+  std::vector<RTCScene> prototypes;  // the instanced meshes' own scenes (TracerScene::Placed)
   std::vector<std::unique_ptr<Cutout>> cutouts;  // Embree's user data of cutout meshes
 
   ~Impl() {
     if (scene) rtcReleaseScene(scene);
+    for (RTCScene prototype : prototypes)
+      if (prototype) rtcReleaseScene(prototype);
     if (device) rtcReleaseDevice(device);
   }
   absl::Status Check(const char* what) {
@@ -170,8 +173,7 @@ bool FiniteSceneBounds(const Scene& scene, Vec3d* boundsMin, Vec3d* boundsMax) {
     lo = Min(lo, p);
     hi = Max(hi, p);
   };
-  for (const TriangleMesh& m : scene.meshes)
-    for (const Vec3d& p : m.positions) add(p);
+  for (const TriangleMesh& m : scene.meshes) GrowMeshBounds(m, &lo, &hi);
   for (const Light& light : scene.lights) {
     if (const auto* l = std::get_if<RectLight>(&light)) {
       add(l->corner);
@@ -223,23 +225,86 @@ absl::StatusOr<std::unique_ptr<TracerScene>> TracerScene::Build(const Scene& sce
     out->boundsMin_ = Min(out->boundsMin_, p);
     out->boundsMax_ = Max(out->boundsMax_, p);
   };
-  auto attach = [&](RTCGeometry geom, SurfaceKind kind, uint32_t index) {
+  auto attach = [&](RTCGeometry geom, SurfaceKind kind, uint32_t index, uint32_t instance = 0) {
     rtcCommitGeometry(geom);
     const unsigned id = rtcAttachGeometry(impl.scene, geom);
     rtcReleaseGeometry(geom);
     if (out->geoms_.size() <= id) out->geoms_.resize(id + 1);
-    out->geoms_[id] = {kind, index};
+    out->geoms_[id] = {kind, index, instance};
     if (impl.meshOfGeom.size() <= id) impl.meshOfGeom.resize(id + 1, UINT32_MAX);
-    if (kind == SurfaceKind::kMesh) impl.meshOfGeom[id] = index;
+    if (out->placedOfGeom_.size() <= id) out->placedOfGeom_.resize(id + 1, UINT32_MAX);
+    return id;
   };
 
   out->normals_.resize(scene.meshes.size());
   out->meshVerts_.assign(scene.meshes.size(), nullptr);
   out->meshIndices_.assign(scene.meshes.size(), nullptr);
   out->doubleSided_.assign(scene.meshes.size(), 0);
+  // Consecutive instanced meshes with the same placements (the materials of one mesh a model
+  // places several times) share one Embree scene, placed by one Embree instance per placement.
+  struct Open {
+    const std::vector<MeshPlacement>* placements = nullptr;
+    Vec3d lo, hi;  // bounds of its meshes, in their own frame
+  } open;
+  const auto place = [&]() {
+    if (open.placements == nullptr) return;
+    const uint32_t prototype = uint32_t(impl.prototypes.size() - 1);
+    rtcCommitScene(impl.prototypes.back());
+    for (uint32_t k = 0; k < open.placements->size(); ++k) {
+      const MeshPlacement& placement = (*open.placements)[k];
+      Placed placed;
+      placed.prototype = prototype;
+      placed.instance = k;
+      placed.linear = placement.linear;
+      placed.inverse = Inverse(placement.linear);
+      placed.normals = Transpose(placed.inverse);
+      placed.translation = placement.translation - offset;
+      const auto norm = [](const Mat3d& a) {  // the infinity norm: the largest row sum
+        double n = 0;
+        for (int r = 0; r < 3; ++r)
+          n = std::max(n, std::abs(a(r, 0)) + std::abs(a(r, 1)) + std::abs(a(r, 2)));
+        return n;
+      };
+      placed.linearNorm = norm(placed.linear);
+      placed.conditioning = std::max(1.0, placed.linearNorm * norm(placed.inverse));
+      placed.boundsMin = {kInf, kInf, kInf};
+      placed.boundsMax = {-kInf, -kInf, -kInf};
+      for (int corner = 0; corner < 8; ++corner) {
+        const Vec3d x = placed.linear * Vec3d{corner & 1 ? open.hi.x : open.lo.x,
+                                              corner & 2 ? open.hi.y : open.lo.y,
+                                              corner & 4 ? open.hi.z : open.lo.z} +
+                        placed.translation;
+        placed.boundsMin = Min(placed.boundsMin, x);
+        placed.boundsMax = Max(placed.boundsMax, x);
+        grow(x);
+      }
+      RTCGeometry instance = rtcNewGeometry(impl.device, RTC_GEOMETRY_TYPE_INSTANCE);
+      rtcSetGeometryInstancedScene(instance, impl.prototypes.back());
+      float xfm[12];
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) xfm[4 * r + c] = float(placed.linear(r, c));
+        xfm[4 * r + 3] = float(placed.translation[r]);
+      }
+      rtcSetGeometryTransform(instance, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, xfm);
+      placed.geomID = attach(instance, SurfaceKind::kMesh, out->prototypeMeshes_.back()[0], k);
+      out->placedOfGeom_[placed.geomID] = uint32_t(out->placed_.size());
+      out->placed_.push_back(placed);
+    }
+    open.placements = nullptr;
+  };
+  const auto samePlacements = [](const std::vector<MeshPlacement>& a,
+                                 const std::vector<MeshPlacement>& b) {
+    if (a.size() != b.size()) return false;
+    for (size_t k = 0; k < a.size(); ++k)
+      if (!(a[k].linear == b[k].linear) || !(a[k].translation == b[k].translation)) return false;
+    return true;
+  };
   for (uint32_t m = 0; m < scene.meshes.size(); ++m) {
     const TriangleMesh& mesh = scene.meshes[m];
     if (mesh.TriangleCount() == 0) continue;
+    // An instanced mesh's vertices stay in its own frame; the others move to local coordinates.
+    const bool instanced = !mesh.placements.empty();
+    const Vec3d shift = instanced ? Vec3d{0, 0, 0} : offset;
     RTCGeometry geom = rtcNewGeometry(impl.device, RTC_GEOMETRY_TYPE_TRIANGLE);
     auto* verts = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0,
                                                               RTC_FORMAT_FLOAT3, 3 * sizeof(float),
@@ -252,12 +317,15 @@ absl::StatusOr<std::unique_ptr<TracerScene>> TracerScene::Build(const Scene& sce
       PB_RETURN_IF_ERROR(impl.Check("Embree: allocating mesh buffers"));
       return absl::InternalError("Embree: cannot allocate mesh buffers");
     }
+    Vec3d lo = mesh.positions[0] - shift, hi = lo;
     for (size_t i = 0; i < mesh.positions.size(); ++i) {
-      const Vec3d local = mesh.positions[i] - offset;
+      const Vec3d local = mesh.positions[i] - shift;
       verts[3 * i] = float(local.x);
       verts[3 * i + 1] = float(local.y);
       verts[3 * i + 2] = float(local.z);
-      grow(local);
+      lo = Min(lo, local);
+      hi = Max(hi, local);
+      if (!instanced) grow(local);
     }
     std::copy(mesh.indices.begin(), mesh.indices.end(), indices);
     std::vector<Vec3f>& normals = out->normals_[m];
@@ -285,8 +353,29 @@ absl::StatusOr<std::unique_ptr<TracerScene>> TracerScene::Build(const Scene& sce
       rtcSetGeometryIntersectFilterFunction(geom, CutoutFilter);
       rtcSetGeometryOccludedFilterFunction(geom, CutoutFilter);
     }
-    attach(geom, SurfaceKind::kMesh, m);
+    if (!instanced) {
+      impl.meshOfGeom[attach(geom, SurfaceKind::kMesh, m)] = m;
+      continue;
+    }
+    if (open.placements == nullptr || !samePlacements(*open.placements, mesh.placements)) {
+      place();
+      RTCScene prototype = rtcNewScene(impl.device);
+      impl.prototypes.push_back(prototype);
+      rtcSetSceneFlags(prototype, RTC_SCENE_FLAG_ROBUST);
+      rtcSetSceneBuildQuality(prototype, RTC_BUILD_QUALITY_HIGH);
+      out->prototypeMeshes_.emplace_back();
+      open = {&mesh.placements, lo, hi};
+    }
+    open.lo = Min(open.lo, lo);
+    open.hi = Max(open.hi, hi);
+    rtcCommitGeometry(geom);
+    const unsigned child = rtcAttachGeometry(impl.prototypes.back(), geom);
+    rtcReleaseGeometry(geom);
+    std::vector<uint32_t>& meshOfChild = out->prototypeMeshes_.back();
+    if (meshOfChild.size() <= child) meshOfChild.resize(child + 1, UINT32_MAX);
+    meshOfChild[child] = m;
   }
+  place();
 
   for (uint32_t i = 0; i < scene.lights.size(); ++i) {
     const Light& light = scene.lights[i];
@@ -339,8 +428,8 @@ bool TracerScene::Intersect(const Vec3f& origin, const Vec3d& dir, double tMax,
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
   rtcIntersect1(impl_->scene, &context, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-  FillHit(rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v,
-          Vec3d{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z}, rh.ray.tfar, origin, dir, hit);
+  FillHit(TopGeometry(rh.hit.geomID, rh.hit.instID[0]), rh.hit.geomID, rh.hit.primID, rh.hit.u,
+          rh.hit.v, Vec3d{rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z}, rh.ray.tfar, origin, dir, hit);
   return true;
 }
 
@@ -369,9 +458,9 @@ void TracerScene::IntersectPacket(std::span<const Vec3f> origins, std::span<cons
   for (size_t k = 0; k < dirs.size(); ++k) {
     found[k] = rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
     if (!found[k]) continue;
-    FillHit(rh.hit.geomID[k], rh.hit.primID[k], rh.hit.u[k], rh.hit.v[k],
-            Vec3d{rh.hit.Ng_x[k], rh.hit.Ng_y[k], rh.hit.Ng_z[k]}, rh.ray.tfar[k],
-            origins[k * originStep], dirs[k], &hits[k]);
+    FillHit(TopGeometry(rh.hit.geomID[k], rh.hit.instID[0][k]), rh.hit.geomID[k], rh.hit.primID[k],
+            rh.hit.u[k], rh.hit.v[k], Vec3d{rh.hit.Ng_x[k], rh.hit.Ng_y[k], rh.hit.Ng_z[k]},
+            rh.ray.tfar[k], origins[k * originStep], dirs[k], &hits[k]);
   }
 }
 
@@ -396,17 +485,41 @@ void TracerScene::OccludedPacket(std::span<const Vec3f> origins, std::span<const
   for (size_t k = 0; k < dirs.size(); ++k) occluded[k] = ray.tfar[k] < 0;
 }
 
-void TracerScene::FillHit(uint32_t geomID, uint32_t primID, float u, float v, const Vec3d& ng,
-                          float tfar, const Vec3f& origin, const Vec3d& dir,
+void TracerScene::FillHit(uint32_t geomID, uint32_t childGeomID, uint32_t primID, float u, float v,
+                          const Vec3d& ng, float tfar, const Vec3f& origin, const Vec3d& dir,
                           SurfaceHit* hit) const {
   const GeomInfo info = geoms_[geomID];
   hit->t = tfar;
   hit->kind = info.kind;
   hit->index = info.index;
+  hit->instance = info.instance;
   hit->prim = primID;
   hit->u = u;
   hit->v = v;
-  if (info.kind == SurfaceKind::kMesh) {
+  if (info.kind == SurfaceKind::kMesh && placedOfGeom_[geomID] != UINT32_MAX) {
+    // A placed mesh: interpolated in its own frame, then placed (both in double).
+    const Placed& placed = placed_[placedOfGeom_[geomID]];
+    const uint32_t mesh = prototypeMeshes_[placed.prototype][childGeomID];
+    hit->index = mesh;
+    const float* verts = meshVerts_[mesh];
+    const uint32_t* idx = meshIndices_[mesh] + 3 * primID;
+    const double bu = u, bw = v, b0 = 1 - bu - bw;
+    const float* a = verts + 3 * idx[0];
+    const float* b = verts + 3 * idx[1];
+    const float* c = verts + 3 * idx[2];
+    const Vec3d own{b0 * a[0] + bu * b[0] + bw * c[0], b0 * a[1] + bu * b[1] + bw * c[1],
+                    b0 * a[2] + bu * b[2] + bw * c[2]};
+    hit->p = placed.linear * own + placed.translation;
+    float scale = 0;
+    for (int k = 0; k < 3; ++k)
+      scale = std::max({scale, std::fabs(a[k]), std::fabs(b[k]), std::fabs(c[k])});
+    // Embree intersects in the mesh's frame (error ~ its vertex magnitudes, scaled out by the
+    // linear part) after moving the ray there (error ~ the world coordinates, amplified by the
+    // linear part's conditioning).
+    hit->vertexScale = std::max(placed.linearNorm * double(scale),
+                                placed.conditioning * MaxComponent(Abs(hit->p)));
+    hit->ng = Normalize(placed.normals * Vec3d(normals_[mesh][primID]));
+  } else if (info.kind == SurfaceKind::kMesh) {
     const float* verts = meshVerts_[info.index];
     const uint32_t* idx = meshIndices_[info.index] + 3 * primID;
     // Interpolated in double: the point lies on the float triangle's plane to ~1e-16 of the
@@ -459,6 +572,8 @@ void TracerScene::VisitMeshTrianglesNear(const Vec3d& p, double radius, Visit&& 
   auto callback = [](RTCPointQueryFunctionArguments* args) -> bool {
     auto* s = static_cast<State*>(args->userPtr);
     const std::vector<uint32_t>& meshOfGeom = s->scene->impl_->meshOfGeom;
+    // Placed meshes are queried below, in their own frames.
+    if (args->context->instStackSize > 0) return false;
     if (s->stopped || args->geomID >= meshOfGeom.size()) return false;
     const uint32_t mesh = meshOfGeom[args->geomID];
     if (mesh == UINT32_MAX) return false;
@@ -472,6 +587,55 @@ void TracerScene::VisitMeshTrianglesNear(const Vec3d& p, double radius, Visit&& 
     return true;
   };
   rtcPointQuery(impl_->scene, &query, &context, callback, &state);
+
+  // Each placement whose box comes within `radius`: its mesh's scene queried in the mesh's frame,
+  // around the point moved there, with a radius that covers the sphere's image (the Frobenius
+  // norm of the inverse bounds how far it stretches), and the triangles placed back exactly.
+  struct PlacedState {
+    const TracerScene* scene;
+    const Placed* placed;
+    Visit* visit;
+    bool* stopped;
+  };
+  auto placedCallback = [](RTCPointQueryFunctionArguments* args) -> bool {
+    auto* s = static_cast<PlacedState*>(args->userPtr);
+    if (*s->stopped) return false;
+    const Placed& placed = *s->placed;
+    const uint32_t mesh = s->scene->prototypeMeshes_[placed.prototype][args->geomID];
+    const float* v = s->scene->meshVerts_[mesh];
+    const uint32_t* idx = s->scene->meshIndices_[mesh] + 3 * args->primID;
+    const auto place = [&](uint32_t i) {
+      return placed.linear * Vertex(v, i) + placed.translation;
+    };
+    if (!(*s->visit)(mesh, placed.geomID, args->primID, place(idx[0]), place(idx[1]),
+                     place(idx[2])))
+      return false;
+    *s->stopped = true;
+    args->query->radius = 0;
+    return true;
+  };
+  for (const Placed& placed : placed_) {
+    if (state.stopped) return;
+    bool apart = false;
+    for (int a = 0; a < 3; ++a)
+      apart = apart || p[a] < placed.boundsMin[a] - radius || p[a] > placed.boundsMax[a] + radius;
+    if (apart) continue;
+    const Vec3d q = placed.inverse * (p - placed.translation);
+    double frobenius = 0;
+    for (int r = 0; r < 3; ++r) frobenius += Dot(placed.inverse.Row(r), placed.inverse.Row(r));
+    RTCPointQuery local;
+    local.x = float(q.x);
+    local.y = float(q.y);
+    local.z = float(q.z);
+    // Widened by float's rounding of the moved point, so a triangle at the edge is not culled.
+    local.radius = float(radius * std::sqrt(frobenius) * (1 + 1e-5) + 1e-6 * MaxComponent(Abs(q)));
+    local.time = 0;
+    RTCPointQueryContext localContext;
+    rtcInitPointQueryContext(&localContext);
+    PlacedState placedState{this, &placed, &visit, &state.stopped};
+    rtcPointQuery(impl_->prototypes[placed.prototype], &local, &localContext, placedCallback,
+                  &placedState);
+  }
 }
 
 bool TracerScene::MeshWithin(const Vec3d& p, double radius) const {
@@ -506,10 +670,14 @@ bool TracerScene::MeshSurfaceAt(const Vec3d& p, SurfaceHit* on) const {
         bestPrim = primID;
         on->p = q;
         on->t = distance;
-        on->ng = Vec3d(TriangleNormal(mesh, primID));
+        const uint32_t placed = placedOfGeom_[geomID];
+        on->ng = placed == UINT32_MAX
+                     ? Vec3d(TriangleNormal(mesh, primID))
+                     : Normalize(placed_[placed].normals * Vec3d(TriangleNormal(mesh, primID)));
         on->vertexScale = vertexScale;
         on->kind = SurfaceKind::kMesh;
         on->index = mesh;
+        on->instance = placed == UINT32_MAX ? 0 : placed_[placed].instance;
         on->prim = primID;
         return false;  // a nearer triangle may still come
       });

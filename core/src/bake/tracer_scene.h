@@ -1,8 +1,10 @@
 // The ray-traceable scene of one bake: Embree 3 device and BVH over the meshes and the area
 // lights' own surfaces (rect: two triangles, disk: an oriented disc, sphere: a sphere), built once
-// per job and held in RAII wrappers. Meshes with a cutout material (scene.h) reject hits where
-// their coverage is below the cutoff, for every query that traces rays; the point queries
-// (MeshWithin, MeshSurfaceAt) see their triangles whole. The scene must outlive the tracer.
+// per job and held in RAII wrappers. An instanced mesh (TriangleMesh::placements) is one Embree
+// scene of its own, placed by one Embree instance per placement: its triangles are stored once.
+// Meshes with a cutout material (scene.h) reject hits where their coverage is below the cutoff, for
+// every query that traces rays; the point queries (MeshWithin, MeshSurfaceAt) see their triangles
+// whole. The scene must outlive the tracer.
 //
 // Coordinates: the tracer works in "local" coordinates, world minus `offset` (the centre of the
 // scene's bounds), in double. Embree stores float vertices of the local coordinates, so a scene far
@@ -17,6 +19,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "probebake/math/mat3.h"
 #include "probebake/math/vec3.h"
 #include "probebake/scene/scene.h"
 
@@ -32,8 +35,9 @@ struct SurfaceHit {
   // error of the surface near p, as Embree sees it (ray_offset.h). Meshes only.
   double vertexScale = 0;
   SurfaceKind kind = SurfaceKind::kMesh;
-  uint32_t index = 0;  // mesh index (kMesh) or light index in Scene::lights
-  uint32_t prim = 0;   // triangle index within the mesh
+  uint32_t index = 0;     // mesh index (kMesh) or light index in Scene::lights
+  uint32_t instance = 0;  // an instanced mesh's placement (TriangleMesh::placements), else 0
+  uint32_t prim = 0;      // triangle index within the mesh
   // Embree's barycentrics of the hit on triangle `prim`, p = (1 - u - v) a + u b + v c (meshes
   // and rect lights): where a material's textures and vertex colours are read.
   float u = 0, v = 0;
@@ -91,7 +95,8 @@ class TracerScene {
   bool MeshSurfaceAt(const Vec3d& p, SurfaceHit* on) const;
 
   const Vec3d& offset() const { return offset_; }
-  // Unit geometric normal of triangle `prim` of mesh `mesh` (local = world orientation).
+  // Unit geometric normal of triangle `prim` of mesh `mesh` (local = world orientation); for an
+  // instanced mesh, in the mesh's own frame (hits carry their world normal).
   const Vec3f& TriangleNormal(uint32_t mesh, uint32_t prim) const { return normals_[mesh][prim]; }
   // Whether both sides of mesh `mesh` are front faces (its material is double-sided): for
   // validity, a back-face hit on it counts as a front one.
@@ -104,14 +109,37 @@ class TracerScene {
   struct GeomInfo {
     SurfaceKind kind;
     uint32_t index;
+    uint32_t instance = 0;  // the placement, for an instance of a mesh
+  };
+  // One placement of an instanced mesh, in local coordinates: x = linear * p + translation for p
+  // in the mesh's frame.
+  struct Placed {
+    uint32_t prototype = 0;  // the Embree scene it places: prototypeMeshes_'s index
+    uint32_t instance = 0;   // its index in the placements of the prototype's meshes
+    unsigned geomID = 0;     // its Embree instance's ID in the top-level scene
+    Mat3d linear, inverse;
+    // inverse(linear)^T: a placed triangle's front normal from its own, unnormalized. A mirroring
+    // placement keeps the mesh's front faces (scene.h), though it turns the placed winding.
+    Mat3d normals;
+    Vec3d translation;
+    // The float error of a placed hit grows by these over the mesh's own (tracer_scene.cpp).
+    double linearNorm = 1, conditioning = 1;
+    Vec3d boundsMin, boundsMax;  // local bounds of the placed mesh
   };
   struct Impl;
 
   // Calls visit(mesh, geomID, primID, a, b, c) with the local vertices of mesh triangles whose
   // bounds come within `radius` of p (Embree's point query), until it returns true.
   // Fills `hit` from Embree's hit record of the ray origin + t dir.
-  void FillHit(uint32_t geomID, uint32_t primID, float u, float v, const Vec3d& ng, float tfar,
-               const Vec3f& origin, const Vec3d& dir, SurfaceHit* hit) const;
+  // geomID: the top-level geometry (an instance's own ID for a hit inside an instance);
+  // childGeomID: the geometry within the instance's scene.
+  void FillHit(uint32_t geomID, uint32_t childGeomID, uint32_t primID, float u, float v,
+               const Vec3d& ng, float tfar, const Vec3f& origin, const Vec3d& dir,
+               SurfaceHit* hit) const;
+  // The top-level geometry of an Embree hit record.
+  static uint32_t TopGeometry(uint32_t geomID, uint32_t instID) {
+    return instID != 0xFFFFFFFFu ? instID : geomID;
+  }
   template <typename Visit>
   void VisitMeshTrianglesNear(const Vec3d& p, double radius, Visit&& visit) const;
 
@@ -120,7 +148,11 @@ class TracerScene {
   Vec3d offset_;
   Vec3d boundsMin_, boundsMax_;
   std::unique_ptr<Impl> impl_;
-  std::vector<GeomInfo> geoms_;              // by Embree geometry ID
+  std::vector<GeomInfo> geoms_;  // by Embree geometry ID
+  std::vector<Placed> placed_;   // every placement of every instanced mesh
+  // Per Embree scene of instanced meshes: the mesh of each of its geometry IDs.
+  std::vector<std::vector<uint32_t>> prototypeMeshes_;
+  std::vector<uint32_t> placedOfGeom_;       // by Embree geometry ID: index in placed_, or ~0
   std::vector<std::vector<Vec3f>> normals_;  // per mesh, per triangle
   // Per mesh: Embree's own float vertex (x y z per vertex) and index buffers, alive as long as
   // the Embree scene.

@@ -119,6 +119,29 @@ absl::Status TransformLight(const Transform& t, const std::string& path, Light* 
 }
 
 // Builds the world-space mesh of job mesh `i` and makes its reference canonical.
+// An instanced mesh as world-space copies, one per placement. Refused when the copies would hold
+// more vertices than 32-bit indices reach.
+absl::StatusOr<TriangleMesh> PlacedCopies(const TriangleMesh& mesh, const std::string& path) {
+  TriangleMesh out;
+  out.name = mesh.name;
+  out.material = mesh.material;
+  const size_t vertices = mesh.positions.size() * mesh.placements.size();
+  if (vertices > size_t(UINT32_MAX)) {
+    return FieldError(path, "an emissive mesh placed " + Num(mesh.placements.size()) +
+                                " times holds too many vertices");
+  }
+  for (const MeshPlacement& placement : mesh.placements) {
+    const uint32_t base = uint32_t(out.positions.size());
+    for (const Vec3d& p : mesh.positions) out.positions.push_back(placement.Apply(p));
+    for (uint32_t index : mesh.indices) out.indices.push_back(base + index);
+    out.albedoUv.insert(out.albedoUv.end(), mesh.albedoUv.begin(), mesh.albedoUv.end());
+    out.emissionUv.insert(out.emissionUv.end(), mesh.emissionUv.begin(), mesh.emissionUv.end());
+    out.coverageUv.insert(out.coverageUv.end(), mesh.coverageUv.begin(), mesh.coverageUv.end());
+    out.colors.insert(out.colors.end(), mesh.colors.begin(), mesh.colors.end());
+  }
+  return out;
+}
+
 class MeshBuilder {
  public:
   // `jobLights`: the job's own lights, added after the meshes'.
@@ -169,10 +192,11 @@ class MeshBuilder {
         }
         PB_ASSIGN_OR_RETURN(raw, job_internal::DecodeImportedMesh(*entry, binding));
       } else {
-        PB_ASSIGN_OR_RETURN(raw, job_internal::ImportMesh(
-                                     bytes, format, name, fieldPath, triangles_,
-                                     limits_.maxTriangles, readReference,
-                                     /*fileMaterials=*/material < 0, limits_.maxTexturePixels));
+        PB_ASSIGN_OR_RETURN(raw,
+                            job_internal::ImportMesh(
+                                bytes, format, name, fieldPath, triangles_, limits_.maxTriangles,
+                                limits_.flattenUpToTriangles, readReference,
+                                /*fileMaterials=*/material < 0, limits_.maxTexturePixels));
         for (const auto& [modelPath, referenced] : raw.references)
           raw.referenceDigests[modelPath] = {Sha256Hex(referenced), int64_t(referenced.size())};
         raw.references.clear();
@@ -200,22 +224,69 @@ class MeshBuilder {
     mesh.name = spec.name();
     mesh.material = material < 0 ? 0 : uint32_t(material);
     mesh.positions = std::move(raw.positions);
+    // The vertices of groups (meshes the file places more than once) stay in their own frame: the
+    // job's transform goes into the groups' placements.
+    std::vector<uint8_t> grouped;
+    if (!raw.triangleGroups.empty()) {
+      grouped.assign(mesh.positions.size(), 0);
+      for (size_t t = 0; t < raw.triangleGroups.size(); ++t)
+        if (raw.triangleGroups[t] > 0)
+          for (int k = 0; k < 3; ++k) grouped[raw.indices[3 * t + size_t(k)]] = 1;
+    }
+    std::vector<std::vector<MeshPlacement>> groups = std::move(raw.groupPlacements);
     if (spec.transform_size() == 16) {
       const auto& t = spec.transform();
-      for (Vec3d& p : mesh.positions) {
-        const double x = p.x, y = p.y, z = p.z;
-        p = {t[0] * x + t[1] * y + t[2] * z + t[3], t[4] * x + t[5] * y + t[6] * z + t[7],
-             t[8] * x + t[9] * y + t[10] * z + t[11]};
+      const MeshPlacement job{
+          Mat3d::FromRows({t[0], t[1], t[2]}, {t[4], t[5], t[6]}, {t[8], t[9], t[10]}),
+          {t[3], t[7], t[11]}};
+      for (size_t i = 0; i < mesh.positions.size(); ++i) {
+        if (!grouped.empty() && grouped[i]) continue;
+        Vec3d& p = mesh.positions[i];
+        p = job.Apply(p);
         if (!IsFinite(p)) {
           return FieldError(path + ".transform", "transformed positions overflow");
         }
       }
+      for (std::vector<MeshPlacement>& placements : groups) {
+        for (MeshPlacement& placement : placements) {
+          placement = {job.linear * placement.linear, job.Apply(placement.translation)};
+          if (!IsFinite(placement.translation) || !IsFinite(placement.linear.Row(0)) ||
+              !IsFinite(placement.linear.Row(1)) || !IsFinite(placement.linear.Row(2))) {
+            return FieldError(path + ".transform", "transformed node placements overflow");
+          }
+        }
+      }
     }
+    // The job's transform keeps the winding (docs/job-format.md: a mirroring transform turns the
+    // front faces with it), while a placement keeps the front faces (scene.h, as a mirroring glTF
+    // node does): a mirroring job transform reverses the groups' own winding to say the same.
+    if (spec.transform_size() == 16 && !raw.triangleGroups.empty()) {
+      const auto& t = spec.transform();
+      if (Determinant(
+              Mat3d::FromRows({t[0], t[1], t[2]}, {t[4], t[5], t[6]}, {t[8], t[9], t[10]})) < 0) {
+        for (size_t k = 0; k + 2 < raw.indices.size(); k += 3)
+          if (raw.triangleGroups[k / 3] > 0) std::swap(raw.indices[k + 1], raw.indices[k + 2]);
+      }
+    }
+    // A placement that flattens its mesh (a node scaled to zero, as files hide parts) holds no
+    // triangle of non-zero area, like a flattened copy whose triangles are all dropped below.
+    int64_t flat = 0;
+    for (std::vector<MeshPlacement>& placements : groups) {
+      const auto before = placements.size();
+      std::erase_if(placements, [](const MeshPlacement& placement) {
+        const Mat3d& m = placement.linear;
+        const double det = Determinant(m);
+        return !(std::abs(det) > 1e-14 * Length(m.Row(0)) * Length(m.Row(1)) * Length(m.Row(2)));
+      });
+      flat += int64_t(before - placements.size());
+    }
+    if (flat > 0) Logger("job")->info("{}: dropped {} placement(s) of zero volume", path, flat);
 
     // Drop triangles without a meaningful normal: zero area (repeated or collinear vertices), or
     // so thin that the cross product is rounding noise (sin of the angle at a below 1e-14).
     int64_t dropped = 0;
     std::vector<uint32_t> keptMaterials;  // per kept triangle, with the file's materials
+    std::vector<uint32_t> keptGroups;     // per kept triangle, with groups
     mesh.indices.reserve(raw.indices.size());
     for (size_t k = 0; k + 2 < raw.indices.size(); k += 3) {
       const Vec3d& a = mesh.positions[raw.indices[k]];
@@ -228,6 +299,7 @@ class MeshBuilder {
       }
       mesh.indices.insert(mesh.indices.end(), raw.indices.begin() + k, raw.indices.begin() + k + 3);
       if (material < 0) keptMaterials.push_back(raw.triangleMaterials[k / 3]);
+      if (!raw.triangleGroups.empty()) keptGroups.push_back(raw.triangleGroups[k / 3]);
     }
     if (dropped > 0) {
       Logger("job")->info("{}: dropped {} zero-area triangle(s) of {}", path, dropped,
@@ -236,12 +308,12 @@ class MeshBuilder {
     if (mesh.indices.empty()) {
       return FieldError(path, "no triangle with a non-zero area");
     }
-    if (material >= 0) {
+    if (material >= 0 && keptGroups.empty()) {
       scene->meshes.push_back(std::move(mesh));
       return absl::OkStatus();
     }
     // The file's lights, moved by the mesh's transform like its vertices.
-    if (!raw.lights.empty()) {
+    if (material < 0 && !raw.lights.empty()) {
       // With the job's own lights (counted against the limit by validation).
       if (limits_.maxLights > 0 && int64_t(scene->lights.size() + raw.lights.size()) + jobLights_ >
                                        int64_t(limits_.maxLights)) {
@@ -256,26 +328,44 @@ class MeshBuilder {
         scene->lights.push_back(light);
       }
     }
-    // The file's own materials: one scene mesh per material its triangles use, holding the
-    // vertices its triangles index, in the file's material order.
-    std::vector<TriangleMesh> parts(raw.materials.size());
-    for (size_t t = 0; t < keptMaterials.size(); ++t) {
-      TriangleMesh& part = parts[keptMaterials[t]];
+    // One scene mesh per group (world space first) and material its triangles use, holding the
+    // vertices its triangles index, in the file's material order; with the file's materials, one
+    // scene material per file material its triangles use.
+    std::map<std::pair<uint32_t, uint32_t>, TriangleMesh> parts;
+    for (size_t t = 0; t < mesh.TriangleCount(); ++t) {
+      const std::pair<uint32_t, uint32_t> key{keptGroups.empty() ? 0 : keptGroups[t],
+                                              material < 0 ? keptMaterials[t] : 0};
+      TriangleMesh& part = parts[key];
       part.indices.insert(part.indices.end(), mesh.indices.begin() + 3 * t,
                           mesh.indices.begin() + 3 * t + 3);
     }
-    for (size_t m = 0; m < parts.size(); ++m) {
-      if (parts[m].indices.empty()) continue;
-      Material fileMaterial = raw.materials[m].material;
-      TriangleMesh& part = parts[m];
+    std::map<uint32_t, uint32_t> sceneMaterial;  // file material -> scene.materials
+    size_t added = 0;
+    for (auto& [key, part] : parts) {
+      const auto [group, m] = key;
+      if (group > 0 && groups[group - 1].empty()) continue;  // every placement dropped
       part.name = spec.name();
-      part.material = uint32_t(scene->materials.size());
+      if (material >= 0) {
+        part.material = uint32_t(material);
+      } else {
+        auto it = sceneMaterial.find(m);
+        if (it == sceneMaterial.end()) {
+          Material fileMaterial = raw.materials[m].material;
+          fileMaterial.name = path + ":" + fileMaterial.name;
+          it = sceneMaterial.emplace(m, uint32_t(scene->materials.size())).first;
+          scene->materials.push_back(std::move(fileMaterial));
+        }
+        part.material = it->second;
+      }
+      const Material& used = scene->materials[part.material];
       // The per-vertex values the material reads, beside the positions.
-      const auto keep = [](bool used, const auto& all) { return used ? &all : nullptr; };
-      const auto* albedoUv = keep(bool(fileMaterial.albedoMap.image), raw.albedoUv);
-      const auto* emissionUv = keep(bool(fileMaterial.emissionMap.image), raw.emissionUv);
-      const auto* coverageUv = keep(bool(fileMaterial.coverageMap.image), raw.coverageUv);
-      const auto* colors = keep(fileMaterial.vertexColors, raw.colors);
+      const auto keep = [](bool wanted, const auto& all) {
+        return wanted && !all.empty() ? &all : nullptr;
+      };
+      const auto* albedoUv = keep(bool(used.albedoMap.image), raw.albedoUv);
+      const auto* emissionUv = keep(bool(used.emissionMap.image), raw.emissionUv);
+      const auto* coverageUv = keep(bool(used.coverageMap.image), raw.coverageUv);
+      const auto* colors = keep(used.vertexColors, raw.colors);
       std::vector<uint32_t> remap(mesh.positions.size(), UINT32_MAX);
       for (uint32_t& index : part.indices) {
         if (remap[index] == UINT32_MAX) {
@@ -288,10 +378,17 @@ class MeshBuilder {
         }
         index = remap[index];
       }
-      fileMaterial.name = path + ":" + fileMaterial.name;
-      scene->materials.push_back(std::move(fileMaterial));
-      scene->meshes.push_back(std::move(parts[m]));
+      if (group > 0) {
+        part.placements = groups[group - 1];
+        // A light is sampled per triangle in world space: an emissive group is placed as copies.
+        if (MaxComponent(used.emission) > 0 || used.emissionMap.image) {
+          PB_ASSIGN_OR_RETURN(part, PlacedCopies(part, path));
+        }
+      }
+      scene->meshes.push_back(std::move(part));
+      ++added;
     }
+    if (added == 0) return FieldError(path, "no triangle with a non-zero area");
     return absl::OkStatus();
   }
 
@@ -463,7 +560,7 @@ absl::Status CheckSceneSpan(const Scene& scene) {
   std::vector<std::pair<std::string, Box>> parts;
   for (size_t i = 0; i < scene.meshes.size(); ++i) {
     Box b;
-    for (const Vec3d& p : scene.meshes[i].positions) b.Add(p);
+    GrowMeshBounds(scene.meshes[i], &b.lo, &b.hi);
     parts.emplace_back(Index("scene.meshes", int64_t(i)), b);
   }
   for (size_t i = 0; i < scene.lights.size(); ++i) {
@@ -607,8 +704,7 @@ absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource&
     Medium medium{ToVec3(m.sigma_a()), ToVec3(m.sigma_s()), m.g(), {}, {}};
     if (MaxComponent(medium.sigmaA) > 0 || MaxComponent(medium.sigmaS) > 0) {
       Box box;
-      for (const TriangleMesh& mesh : out.meshes)
-        for (uint32_t index : mesh.indices) box.Add(mesh.positions[index]);
+      for (const TriangleMesh& mesh : out.meshes) GrowMeshBounds(mesh, &box.lo, &box.hi);
       for (const Light& light : out.lights) AddLight(light, &box);
       const ProbeGrid& g = job.grid;
       box.Add(g.origin);
@@ -635,11 +731,17 @@ absl::StatusOr<BakeJob> BuildBakeJob(const v1::JobSpec& spec, const AssetSource&
                             "\nprobebake-baker-version=" + std::to_string(kBakerVersion));
   job.settingsJson = SettingsToJson(job.settings);
 
-  int64_t triangles = 0;
-  for (const TriangleMesh& mesh : out.meshes) triangles += int64_t(mesh.TriangleCount());
-  Logger("job")->info("job {}: {} meshes, {} triangles, {} lights, {} probes, order {}",
-                      job.jobDigest.substr(0, 12), out.meshes.size(), triangles, out.lights.size(),
-                      job.grid.ProbeCount(), job.settings.shOrder);
+  int64_t triangles = 0, placed = 0, instanced = 0;
+  for (const TriangleMesh& mesh : out.meshes) {
+    triangles += int64_t(mesh.TriangleCount());
+    placed += int64_t(mesh.PlacedTriangleCount());
+    instanced += !mesh.placements.empty();
+  }
+  Logger("job")->info(
+      "job {}: {} meshes ({} instanced), {} triangles stored, {} placed, {} lights, {} probes, "
+      "order {}",
+      job.jobDigest.substr(0, 12), out.meshes.size(), instanced, triangles, placed,
+      out.lights.size(), job.grid.ProbeCount(), job.settings.shOrder);
   return job;
 }
 

@@ -9,7 +9,7 @@
 namespace probebake::job_internal {
 namespace {
 
-constexpr std::string_view kMagic = "PBMESH01";
+constexpr std::string_view kMagic = "PBMESH02";
 
 // The smallest encoding of a texture, a material and a light: what a count of them must fit in.
 constexpr uint64_t kMinTextureBytes = 8 + 4 + 4 + 1 + 8;
@@ -150,6 +150,15 @@ std::string EncodeImportedMesh(const ImportBinding& binding, const ImportedMesh&
   for (const Vec3d& p : mesh.positions) PutVec(out, p);
   out.Vector(mesh.indices);
   out.Vector(mesh.triangleMaterials);
+  out.Vector(mesh.triangleGroups);
+  out.Pod(uint64_t(mesh.groupPlacements.size()));
+  for (const std::vector<MeshPlacement>& placements : mesh.groupPlacements) {
+    out.Pod(uint64_t(placements.size()));
+    for (const MeshPlacement& placement : placements) {
+      for (int r = 0; r < 3; ++r) PutVec(out, placement.linear.Row(r));
+      PutVec(out, placement.translation);
+    }
+  }
 
   const std::vector<std::shared_ptr<const Texture>> textures = TextureTable(mesh.materials);
   std::map<const Texture*, int64_t> textureIndex;
@@ -223,7 +232,26 @@ absl::StatusOr<ImportedMesh> DecodeImportedMesh(std::string_view entry,
   mesh.positions.resize(size_t(count));
   for (Vec3d& p : mesh.positions)
     if (!GetVec(in, &p)) return damaged("positions");
-  if (!in.Vector(&mesh.indices) || !in.Vector(&mesh.triangleMaterials)) return damaged("triangles");
+  if (!in.Vector(&mesh.indices) || !in.Vector(&mesh.triangleMaterials) ||
+      !in.Vector(&mesh.triangleGroups))
+    return damaged("triangles");
+  if (!in.Count(sizeof(uint64_t), &count)) return damaged("the groups");
+  mesh.groupPlacements.resize(size_t(count));
+  for (std::vector<MeshPlacement>& placements : mesh.groupPlacements) {
+    if (!in.Count(4 * 3 * sizeof(double), &count) || count < 2) return damaged("a group");
+    placements.resize(size_t(count));
+    for (MeshPlacement& placement : placements) {
+      Vec3d rows[3];
+      for (Vec3d& row : rows)
+        if (!GetVec(in, &row)) return damaged("a placement");
+      if (!GetVec(in, &placement.translation)) return damaged("a placement");
+      placement.linear = Mat3d::FromRows(rows[0], rows[1], rows[2]);
+    }
+  }
+  if (!mesh.triangleGroups.empty() && mesh.triangleGroups.size() != mesh.indices.size() / 3)
+    return damaged("a group per triangle");
+  for (uint32_t group : mesh.triangleGroups)
+    if (group > mesh.groupPlacements.size()) return damaged("a triangle's group");
   if (mesh.indices.size() % 3 != 0) return damaged("an index count not a multiple of 3");
   for (uint32_t index : mesh.indices)
     if (index >= mesh.positions.size()) return damaged("an index past the vertices");

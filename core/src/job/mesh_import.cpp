@@ -494,6 +494,7 @@ constexpr double kMaxPolygonWork = 1 << 26;
 absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::string& format,
                                         const std::string& name, const std::string& fieldPath,
                                         int64_t trianglesBefore, int64_t maxTriangles,
+                                        int64_t flattenUpToTriangles,
                                         const ReferenceReader& readReference, bool fileMaterials,
                                         int64_t maxTexturePixels) {
   const std::string what = Quoted(name);
@@ -580,10 +581,12 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
   struct Instance {
     const aiMesh* mesh;
     Affine transform;
+    size_t node;  // the node's place in the walk
   };
   std::vector<Instance> instances;
   std::map<std::string, Affine> nodeTransforms;  // by node name, the first node of a name
   int64_t triangles = trianglesBefore;
+  size_t nodes = 0;
   if (scene->mRootNode != nullptr) {
     std::vector<std::pair<const aiNode*, Affine>> stack{
         {scene->mRootNode, FromAssimp(scene->mRootNode->mTransformation)}};
@@ -591,22 +594,63 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
       const auto [node, transform] = stack.back();
       stack.pop_back();
       nodeTransforms.emplace(node->mName.C_Str(), transform);
+      const size_t nodeIndex = nodes++;
       for (unsigned i = 0; i < node->mNumMeshes; ++i) {
         if (node->mMeshes[i] >= scene->mNumMeshes) continue;
         const aiMesh* mesh = scene->mMeshes[node->mMeshes[i]];
         if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
-        instances.push_back({mesh, transform});
+        instances.push_back({mesh, transform, nodeIndex});
         triangles += mesh->mNumFaces;
-        if (maxTriangles > 0 && triangles > maxTriangles) {
-          return FieldError(fieldPath, "the scene's triangles exceed the limit of " +
-                                           Num(maxTriangles) + " with " + what);
-        }
       }
       for (unsigned i = 0; i < node->mNumChildren; ++i) {
         const aiNode* child = node->mChildren[i];
         stack.emplace_back(child, Compose(transform, FromAssimp(child->mTransformation)));
       }
     }
+  }
+
+  // What a node places (its meshes: a glTF mesh's primitives, one per material) is kept once, in
+  // its own frame, as a group with its placements when several nodes place the same meshes and
+  // the file places more than flattenUpToTriangles (groups numbered in the order of the walk, so
+  // the same file gives the same groups).
+  std::vector<std::vector<const aiMesh*>> placedBy(nodes);  // by node
+  std::vector<const Affine*> transformOf(nodes, nullptr);
+  for (const Instance& instance : instances) {
+    placedBy[instance.node].push_back(instance.mesh);
+    transformOf[instance.node] = &instance.transform;
+  }
+  std::vector<uint32_t> groupOfNode(nodes, 0);  // 1 + the group's index, or 0
+  std::vector<size_t> writtenBy;                // per group, the node whose meshes are written
+  std::vector<std::vector<MeshPlacement>> groupPlacements;
+  if (triangles - trianglesBefore > flattenUpToTriangles) {
+    std::map<std::vector<const aiMesh*>, int> uses;
+    for (const auto& meshes : placedBy)
+      if (!meshes.empty()) ++uses[meshes];
+    std::map<std::vector<const aiMesh*>, uint32_t> groupOf;
+    for (size_t n = 0; n < nodes; ++n) {
+      if (placedBy[n].empty() || uses[placedBy[n]] < 2) continue;
+      auto [it, added] = groupOf.emplace(placedBy[n], uint32_t(groupPlacements.size() + 1));
+      if (added) {
+        groupPlacements.emplace_back();
+        writtenBy.push_back(n);
+      }
+      groupOfNode[n] = it->second;
+      const Affine& m = *transformOf[n];
+      groupPlacements[it->second - 1].push_back(
+          {Mat3d::FromRows({m[0], m[1], m[2]}, {m[4], m[5], m[6]}, {m[8], m[9], m[10]}),
+           {m[3], m[7], m[11]}});
+    }
+    // The triangles held: a group's once.
+    triangles = trianglesBefore;
+    for (const Instance& instance : instances) {
+      const uint32_t group = groupOfNode[instance.node];
+      if (group == 0 || writtenBy[group - 1] == instance.node)
+        triangles += instance.mesh->mNumFaces;
+    }
+  }
+  if (maxTriangles > 0 && triangles > maxTriangles) {
+    return FieldError(fieldPath, "the scene's triangles exceed the limit of " + Num(maxTriangles) +
+                                     " with " + what);
   }
 
   // The texture maps of the materials the instances use (assimp records their paths; embedded
@@ -632,6 +676,7 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
   if (!references->firstError().ok()) return references->firstError();
 
   ImportedMesh out;
+  out.groupPlacements = std::move(groupPlacements);
   TextureLoader textures(*scene, *references, fieldPath, maxTexturePixels);
   std::map<unsigned, uint32_t> fileMaterial;  // assimp's material index -> out.materials
   for (const unsigned m : materials) {
@@ -673,6 +718,8 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
 
   for (const Instance& instance : instances) {
     const aiMesh* mesh = instance.mesh;
+    const uint32_t group = groupOfNode[instance.node];
+    if (group > 0 && writtenBy[group - 1] != instance.node) continue;  // its placements say where
     const size_t base = out.positions.size();
     if (base + mesh->mNumVertices > size_t(UINT32_MAX)) {
       return FieldError(fieldPath, what + " has too many vertices");
@@ -686,7 +733,9 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
     }
     const FileMaterial& used = out.materials[material->second];
     for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
-      const Vec3d p = Apply(instance.transform, mesh->mVertices[v]);
+      const Vec3d p = group > 0
+                          ? Vec3d(mesh->mVertices[v].x, mesh->mVertices[v].y, mesh->mVertices[v].z)
+                          : Apply(instance.transform, mesh->mVertices[v]);
       if (!IsFinite(p)) {
         return FieldError(fieldPath, what + " has a non-finite vertex position");
       }
@@ -700,16 +749,24 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
                                  : std::array<float, 4>{1, 1, 1, 1});
       }
     }
+    // A node that mirrors its mesh keeps the mesh's front faces (glTF: the determinant of the
+    // node's transform decides the winding): the copy's winding is reversed.
+    const Affine& m = instance.transform;
+    const bool mirrored =
+        group == 0 && Determinant(Mat3d::FromRows({m[0], m[1], m[2]}, {m[4], m[5], m[6]},
+                                                  {m[8], m[9], m[10]})) < 0;
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
       const aiFace& face = mesh->mFaces[f];
       if (face.mNumIndices != 3) continue;  // points and lines sorted into this mesh
       for (int k = 0; k < 3; ++k) {
-        if (face.mIndices[k] >= mesh->mNumVertices) {
+        const unsigned corner = mirrored && k > 0 ? 3 - k : k;
+        if (face.mIndices[corner] >= mesh->mNumVertices) {
           return FieldError(fieldPath, what + " has a vertex index out of range");
         }
-        out.indices.push_back(uint32_t(base + face.mIndices[k]));
+        out.indices.push_back(uint32_t(base + face.mIndices[corner]));
       }
       out.triangleMaterials.push_back(material->second);
+      if (!out.groupPlacements.empty()) out.triangleGroups.push_back(group);
     }
   }
   if (fileMaterials) {

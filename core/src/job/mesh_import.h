@@ -35,12 +35,19 @@ struct FileMaterial {
 // intensity 1 and 683 lux a directional irradiance of 1.
 inline constexpr double kLumensPerWatt = 683;
 
-// Triangles of a mesh file in the file's world space (node transforms applied, in double).
+// Triangles of a mesh file in the file's world space (node transforms applied, in double), except
+// for the meshes the node tree places more than once: those are held once, in their own frame, as
+// a group with its placements.
 struct ImportedMesh {
   std::vector<Vec3d> positions;
   std::vector<uint32_t> indices;            // 3 per triangle, counter-clockwise front faces
   std::vector<uint32_t> triangleMaterials;  // per triangle, an index into `materials`
-  std::vector<FileMaterial> materials;      // the file's materials the triangles use
+  // Per triangle (empty: all 0): 0 for a triangle in world space, g > 0 for one of group g - 1,
+  // whose vertices are in its mesh's own frame and serve no other group.
+  std::vector<uint32_t> triangleGroups;
+  // Per group: where the file places it (node transforms), at least two placements.
+  std::vector<std::vector<MeshPlacement>> groupPlacements;
+  std::vector<FileMaterial> materials;  // the file's materials the triangles use
   // Per vertex, when a material the triangles use needs them (else empty): image coordinates of
   // its maps (each vertex has one material) and linear RGBA vertex colours (1 where a vertex has
   // none).
@@ -70,7 +77,9 @@ struct ImportedMesh {
 using ReferenceReader = std::function<absl::StatusOr<std::string>(const std::string& modelPath)>;
 
 // Reads `bytes` as `format` ("obj", "ply", "gltf", "glb"): polygons triangulated, points and lines
-// ignored, every mesh instance of the node tree merged with its accumulated node transform. The
+// ignored, every mesh instance of the node tree merged with its accumulated node transform; but
+// when the nodes place more than `flattenUpToTriangles` triangles, the meshes that several nodes
+// place alike are kept once as a group with their transforms (JobLimits). The
 // files it references (an OBJ's mtllib and map_Kd/map_Ke/map_d textures, a glTF's external buffers
 // and images) are read through `readReference` only, never opened by path; a reference it cannot
 // read refuses the file. Without `fileMaterials` (the job gives the mesh a material) the files only
@@ -81,11 +90,13 @@ using ReferenceReader = std::function<absl::StatusOr<std::string>(const std::str
 // `format` reads the bytes (assimp would otherwise try each of its other formats), and a PLY header
 // is checked before assimp reads it. INVALID_ARGUMENT "<fieldPath>: ..." when assimp cannot read
 // it, when it holds no triangle, or when its triangles would bring the scene's count
-// (`trianglesBefore` before this file) above `maxTriangles` (0: no limit); that check runs before
-// any vertex is copied. `name` is the file's name for messages.
+// (`trianglesBefore` before this file; a group's triangles count once) above `maxTriangles`
+// (0: no limit); that check runs before any vertex is copied. `name` is the file's name for
+// messages.
 absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::string& format,
                                         const std::string& name, const std::string& fieldPath,
                                         int64_t trianglesBefore, int64_t maxTriangles,
+                                        int64_t flattenUpToTriangles,
                                         const ReferenceReader& readReference, bool fileMaterials,
                                         int64_t maxTexturePixels);
 

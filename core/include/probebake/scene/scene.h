@@ -61,9 +61,24 @@ struct Material {
   bool HasCutout() const { return alphaCutoff > 0; }
 };
 
-// Triangles in world space (the job's transform already applied).
+// Where an instanced mesh is placed: a world point is linear * p + translation for p in the
+// mesh's own frame. linear is invertible (its determinant not zero). A mirroring placement
+// (negative determinant) keeps the mesh's front faces: front normals are inverse(linear)^T times
+// the mesh's own, as a glTF node that mirrors its mesh keeps them.
+struct MeshPlacement {
+  Mat3d linear;
+  Vec3d translation;
+
+  Vec3d Apply(const Vec3d& p) const { return linear * p + translation; }
+};
+
+// Triangles in world space (the job's transform already applied), or, when `placements` is not
+// empty, in the mesh's own frame and placed once per entry: a mesh a model places under several
+// nodes is stored (and held by Embree) once. An instanced mesh never emits: the job builder places
+// an emissive mesh's copies in world space instead, since a light is sampled per triangle.
 struct TriangleMesh {
   std::string name;
+  std::vector<MeshPlacement> placements;
   std::vector<Vec3d> positions;
   std::vector<uint32_t> indices;  // 3 per triangle, all < positions.size()
   uint32_t material = 0;          // index into Scene::materials
@@ -73,7 +88,30 @@ struct TriangleMesh {
   std::vector<std::array<float, 4>> colors;
 
   size_t TriangleCount() const { return indices.size() / 3; }
+  // The triangles the scene holds through this mesh: TriangleCount() times its placements.
+  size_t PlacedTriangleCount() const {
+    return TriangleCount() * (placements.empty() ? 1 : placements.size());
+  }
 };
+
+// World bounds of `mesh` grown into [*lo, *hi]: its positions, or, when instanced, the corners of
+// their box under every placement (a box around the placed triangles, not always the tightest).
+inline void GrowMeshBounds(const TriangleMesh& mesh, Vec3d* lo, Vec3d* hi) {
+  const auto grow = [&](const Vec3d& p) {
+    *lo = Min(*lo, p);
+    *hi = Max(*hi, p);
+  };
+  if (mesh.placements.empty()) {
+    for (const Vec3d& p : mesh.positions) grow(p);
+    return;
+  }
+  if (mesh.positions.empty()) return;
+  Vec3d a = mesh.positions[0], b = mesh.positions[0];
+  for (const Vec3d& p : mesh.positions) a = Min(a, p), b = Max(b, p);
+  for (const MeshPlacement& placement : mesh.placements)
+    for (int k = 0; k < 8; ++k)
+      grow(placement.Apply({k & 1 ? b.x : a.x, k & 2 ? b.y : a.y, k & 4 ? b.z : a.z}));
+}
 
 struct PointLight {
   Vec3d position;
