@@ -78,10 +78,14 @@ for (const mesh of data.meshes) {
   geometry.computeVertexNormals();
   // A cutout (a trellis, leaves) is drawn translucent by the share of its texels that stay.
   const opacity = mesh.opacity ?? 1;
+  // A mesh the scene places several times (placements: 12 numbers each, a row-major 3 x 4 in
+  // three's frame) is one InstancedMesh.
+  const placements = mesh.placements ? mesh.placements.length / 12 : 0;
   const material = new THREE.ShaderMaterial({
     glslVersion: THREE.GLSL3,
     // Front faces only: a closed room seen from outside shows its inside (walls wound inward).
-    side: opacity < 1 ? THREE.DoubleSide : THREE.FrontSide,
+    // Both for cutouts, and for placed meshes (a mirroring placement turns their winding).
+    side: opacity < 1 || placements > 0 ? THREE.DoubleSide : THREE.FrontSide,
     transparent: opacity < 1,
     depthWrite: opacity >= 1,
     uniforms: {
@@ -93,7 +97,11 @@ for (const mesh of data.meshes) {
     vertexShader: /* glsl */ `
       out vec3 vWorld;
       void main() {
-        vec4 w = modelMatrix * vec4(position, 1.0);
+        vec4 w = vec4(position, 1.0);
+        #ifdef USE_INSTANCING
+        w = instanceMatrix * w;
+        #endif
+        w = modelMatrix * w;
         vWorld = w.xyz;
         gl_Position = projectionMatrix * viewMatrix * w;
       }`,
@@ -121,10 +129,23 @@ for (const mesh of data.meshes) {
         outColor = vec4(srgbEncode(albedo * max(e.rgb, 0.0) / 3.14159265358979 * exposure), opacity);
       }`,
   });
-  const object = new THREE.Mesh(geometry, material);
+  let object;
+  if (placements > 0) {
+    object = new THREE.InstancedMesh(geometry, material, placements);
+    const m = new THREE.Matrix4();
+    for (let k = 0; k < placements; ++k) {
+      const a = mesh.placements.slice(12 * k, 12 * k + 12);
+      m.set(...a, 0, 0, 0, 1);  // Matrix4.set takes row-major
+      object.setMatrixAt(k, m);
+    }
+    object.computeBoundingBox();
+    box.union(object.boundingBox);
+  } else {
+    object = new THREE.Mesh(geometry, material);
+    geometry.computeBoundingBox();
+    box.union(geometry.boundingBox);
+  }
   scene.add(object);
-  geometry.computeBoundingBox();
-  box.union(geometry.boundingBox);
 }
 
 // Probe spheres.

@@ -85,25 +85,32 @@ absl::StatusOr<std::string> ViewerPageHtml(const ProbeVolume& volume, const Scen
       AppendVec(&data, known ? MeanAlbedo(scene->materials[mesh.material]) : Vec3d{0.8, 0.8, 0.8});
       absl::StrAppendFormat(&data, ",\"opacity\":%.4g",
                             known ? KeptFraction(scene->materials[mesh.material]) : 1.0);
-      // An instanced mesh is drawn as one copy per placement.
-      const size_t copies = std::max<size_t>(mesh.placements.size(), 1);
-      const auto place = [&](size_t copy, const Vec3d& p) {
-        return mesh.placements.empty() ? p : mesh.placements[copy].Apply(p);
-      };
+      // Positions in three's frame; an instanced mesh's in its own frame, with its placements
+      // (row-major 3 x 4, in three's frame: axes L axes^T and axes t) drawn as a three.js
+      // InstancedMesh, so a level of many placed copies stays as small as its distinct meshes.
       data += ",\"positions\":[";
-      for (size_t copy = 0; copy < copies; ++copy) {
-        for (size_t v = 0; v < mesh.positions.size(); ++v) {
-          const Vec3d t = axes * place(copy, mesh.positions[v]);
-          absl::StrAppendFormat(&data, "%s%.7g,%.7g,%.7g", copy + v ? "," : "", t.x, t.y, t.z);
-        }
+      for (size_t v = 0; v < mesh.positions.size(); ++v) {
+        const Vec3d t = axes * mesh.positions[v];
+        absl::StrAppendFormat(&data, "%s%.7g,%.7g,%.7g", v ? "," : "", t.x, t.y, t.z);
       }
       data += "],\"indices\":[";
-      for (size_t copy = 0; copy < copies; ++copy) {
-        const size_t base = copy * mesh.positions.size();
-        for (size_t i = 0; i < mesh.indices.size(); ++i)
-          absl::StrAppendFormat(&data, "%s%u", copy + i ? "," : "", base + mesh.indices[i]);
+      for (size_t i = 0; i < mesh.indices.size(); ++i)
+        absl::StrAppendFormat(&data, "%s%u", i ? "," : "", mesh.indices[i]);
+      data += "]";
+      if (!mesh.placements.empty()) {
+        data += ",\"placements\":[";
+        for (size_t k = 0; k < mesh.placements.size(); ++k) {
+          const MeshPlacement& placement = mesh.placements[k];
+          const Mat3d linear = axes * placement.linear * Transpose(axes);
+          const Vec3d t = axes * placement.translation;
+          for (int r = 0; r < 3; ++r) {
+            absl::StrAppendFormat(&data, "%s%.9g,%.9g,%.9g,%.9g", k + r ? "," : "", linear(r, 0),
+                                  linear(r, 1), linear(r, 2), t[r]);
+          }
+        }
+        data += "]";
       }
-      data += "]}";
+      data += "}";
     }
   }
   data += "],\"textures\":";
