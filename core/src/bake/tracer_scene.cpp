@@ -230,9 +230,8 @@ absl::StatusOr<std::unique_ptr<TracerScene>> TracerScene::Build(const Scene& sce
     const unsigned id = rtcAttachGeometry(impl.scene, geom);
     rtcReleaseGeometry(geom);
     if (out->geoms_.size() <= id) out->geoms_.resize(id + 1);
-    out->geoms_[id] = {kind, index, instance};
+    out->geoms_[id] = {kind, index, instance, UINT32_MAX};
     if (impl.meshOfGeom.size() <= id) impl.meshOfGeom.resize(id + 1, UINT32_MAX);
-    if (out->placedOfGeom_.size() <= id) out->placedOfGeom_.resize(id + 1, UINT32_MAX);
     return id;
   };
 
@@ -287,7 +286,7 @@ absl::StatusOr<std::unique_ptr<TracerScene>> TracerScene::Build(const Scene& sce
       }
       rtcSetGeometryTransform(instance, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, xfm);
       placed.geomID = attach(instance, SurfaceKind::kMesh, out->prototypeMeshes_.back()[0], k);
-      out->placedOfGeom_[placed.geomID] = uint32_t(out->placed_.size());
+      out->geoms_[placed.geomID].placed = uint32_t(out->placed_.size());
       out->placed_.push_back(placed);
     }
     open.placements = nullptr;
@@ -496,9 +495,9 @@ void TracerScene::FillHit(uint32_t geomID, uint32_t childGeomID, uint32_t primID
   hit->prim = primID;
   hit->u = u;
   hit->v = v;
-  if (info.kind == SurfaceKind::kMesh && placedOfGeom_[geomID] != UINT32_MAX) {
+  if (info.placed != UINT32_MAX) {
     // A placed mesh: interpolated in its own frame, then placed (both in double).
-    const Placed& placed = placed_[placedOfGeom_[geomID]];
+    const Placed& placed = placed_[info.placed];
     const uint32_t mesh = prototypeMeshes_[placed.prototype][childGeomID];
     hit->index = mesh;
     const float* verts = meshVerts_[mesh];
@@ -670,7 +669,7 @@ bool TracerScene::MeshSurfaceAt(const Vec3d& p, SurfaceHit* on) const {
         bestPrim = primID;
         on->p = q;
         on->t = distance;
-        const uint32_t placed = placedOfGeom_[geomID];
+        const uint32_t placed = geoms_[geomID].placed;
         on->ng = placed == UINT32_MAX
                      ? Vec3d(TriangleNormal(mesh, primID))
                      : Normalize(placed_[placed].normals * Vec3d(TriangleNormal(mesh, primID)));

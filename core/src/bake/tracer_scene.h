@@ -109,7 +109,8 @@ class TracerScene {
   struct GeomInfo {
     SurfaceKind kind;
     uint32_t index;
-    uint32_t instance = 0;  // the placement, for an instance of a mesh
+    uint32_t instance = 0;          // the placement, for an instance of a mesh
+    uint32_t placed = 0xFFFFFFFFu;  // its index in placed_, for an instance of a mesh
   };
   // One placement of an instanced mesh, in local coordinates: x = linear * p + translation for p
   // in the mesh's frame.
@@ -152,7 +153,6 @@ class TracerScene {
   std::vector<Placed> placed_;   // every placement of every instanced mesh
   // Per Embree scene of instanced meshes: the mesh of each of its geometry IDs.
   std::vector<std::vector<uint32_t>> prototypeMeshes_;
-  std::vector<uint32_t> placedOfGeom_;       // by Embree geometry ID: index in placed_, or ~0
   std::vector<std::vector<Vec3f>> normals_;  // per mesh, per triangle
   // Per mesh: Embree's own float vertex (x y z per vertex) and index buffers, alive as long as
   // the Embree scene.
