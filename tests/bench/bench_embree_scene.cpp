@@ -17,6 +17,10 @@ absl::Status EmbreeScene::Build(const Scene& scene, const Vec3d& offset, int64_t
   *triangles = 0;
   for (const TriangleMesh& mesh : scene.meshes) {
     if (mesh.TriangleCount() == 0) continue;
+    // The bench's scenes are flat; instances would need the tracer's two-level scene here.
+    if (!mesh.placements.empty())
+      return absl::UnimplementedError("raw-Embree bench scene: mesh " + mesh.name +
+                                      " is instanced");
     RTCGeometry geom = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_TRIANGLE);
     auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
         geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 12, mesh.positions.size()));

@@ -26,7 +26,7 @@ class EmbreeScene {
   EmbreeScene& operator=(const EmbreeScene&) = delete;
 
   // Builds `scene` in local coordinates (world minus `offset`), as the tracer does; *triangles
-  // gets the meshes' triangle count.
+  // gets the meshes' triangle count. Instanced meshes are refused (UNIMPLEMENTED).
   absl::Status Build(const Scene& scene, const Vec3d& offset, int64_t* triangles);
 
   RTCScene scene() const { return scene_; }
