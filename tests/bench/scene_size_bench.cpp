@@ -21,6 +21,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -41,9 +42,10 @@ namespace {
 // of kMaterials materials.
 constexpr int kMeshes = 50, kPrimitives = 40, kMaterials = 8, kBoxTriangles = 12;
 
+constexpr int64_t kFileTriangles = int64_t(kMeshes) * kPrimitives * kBoxTriangles;
+
 struct Level {
   std::string jobPath;
-  int64_t distinctTriangles = 0;
 };
 
 void Append(std::string* bin, const void* data, size_t bytes) {
@@ -120,7 +122,7 @@ Level WriteLevel(const std::filesystem::path& dir, int nodes) {
                 "\"settings\":{\"samplesPerProbe\":16}}",
                 extent, extent);
   std::ofstream(dir / "job.json", std::ios::binary) << buffer;
-  return {(dir / "job.json").string(), int64_t(kMeshes) * kPrimitives * kBoxTriangles};
+  return {(dir / "job.json").string()};
 }
 
 // A fresh folder under the system's temporary folder, removed with the object.
@@ -143,6 +145,20 @@ absl::StatusOr<BakeJob> ImportLevel(const std::string& jobPath, bool instanced) 
   limits.flattenUpToTriangles = instanced ? 0 : limits.maxTriangles;
   return BuildBakeJob(*spec, LocalAssetSource(JobFileDir(jobPath), "", limits.maxAssetBytes),
                       limits);
+}
+
+// The level of state.range(0) nodes, instanced (state.range(1) = 1) or flattened; nothing, the
+// benchmark skipped with the error, when it cannot be read.
+std::optional<BakeJob> LevelJob(benchmark::State& state) {
+  Logger("job")->set_level(spdlog::level::warn);
+  const TempDir dir;
+  const Level level = WriteLevel(dir.path, int(state.range(0)));
+  absl::StatusOr<BakeJob> job = ImportLevel(level.jobPath, state.range(1) != 0);
+  if (!job.ok()) {
+    state.SkipWithError(std::string(job.status().message()).c_str());
+    return std::nullopt;
+  }
+  return *std::move(job);
 }
 
 int64_t SceneGeometryBytes(const Scene& scene) {
@@ -190,19 +206,13 @@ void BM_LevelImport(benchmark::State& state) {
     held = std::max(held, bench::CurrentRssBytes() - before);
     state.ResumeTiming();
   }
-  Report(state, job->scene, level.distinctTriangles, held);
+  Report(state, job->scene, kFileTriangles, held);
 }
 
 // Args: nodes; instanced (1) or flattened (0).
 void BM_LevelTracerBuild(benchmark::State& state) {
-  Logger("job")->set_level(spdlog::level::warn);
-  const TempDir dir;
-  const Level level = WriteLevel(dir.path, int(state.range(0)));
-  absl::StatusOr<BakeJob> job = ImportLevel(level.jobPath, state.range(1) != 0);
-  if (!job.ok()) {
-    state.SkipWithError(std::string(job.status().message()).c_str());
-    return;
-  }
+  std::optional<BakeJob> job = LevelJob(state);
+  if (!job) return;
   int64_t held = 0;
   for (auto _ : state) {
     state.PauseTiming();
@@ -220,21 +230,15 @@ void BM_LevelTracerBuild(benchmark::State& state) {
     tracer->reset();
     state.ResumeTiming();
   }
-  Report(state, job->scene, level.distinctTriangles, held);
+  Report(state, job->scene, kFileTriangles, held);
 }
 
 // Args: nodes; instanced (1) or flattened (0). Whole bakes of the level's 4 probes at 65536 samples
 // each under a uniform sky, 1 thread: what the second level of traversal costs per ray.
 void BM_LevelBake(benchmark::State& state) {
-  Logger("job")->set_level(spdlog::level::warn);
   Logger("bake")->set_level(spdlog::level::warn);
-  const TempDir dir;
-  const Level level = WriteLevel(dir.path, int(state.range(0)));
-  absl::StatusOr<BakeJob> job = ImportLevel(level.jobPath, state.range(1) != 0);
-  if (!job.ok()) {
-    state.SkipWithError(std::string(job.status().message()).c_str());
-    return;
-  }
+  std::optional<BakeJob> job = LevelJob(state);
+  if (!job) return;
   job->settings.samplesPerProbe = 65536;
   BakeOptions options;
   options.threads = 1;
