@@ -70,6 +70,24 @@ std::string HashVolume(const ProbeVolume& v) {
   return Sha256Hex(bytes);
 }
 
+// tests/data/demo/mirrored_boxes.gltf (a unit box under a plain node at x in [-1.5, -0.5] and a
+// node mirroring x at [0.5, 1.5]) in a closed room, probes at both boxes' centres.
+constexpr const char* kMirroredNodeJson = R"({
+  "scene": {
+    "materials": [{"name": "wall", "albedo": [0.7, 0.7, 0.7]}],
+    "meshes": [
+      {"name": "room", "material": "wall",
+       "positions": [-3,-2,-0.01, 3,-2,-0.01, -3,2,-0.01, 3,2,-0.01, -3,-2,3, 3,-2,3, -3,2,3, 3,2,3],
+       "indices": [0,1,3, 0,3,2, 4,6,7, 4,7,5, 0,4,5, 0,5,1, 2,3,7, 2,7,6, 0,2,6, 0,6,4,
+                   1,5,7, 1,7,3]},
+      {"name": "boxes", "file": "mirrored_boxes.gltf"}
+    ],
+    "lights": [{"point": {"position": [0, 0, 2.5], "intensity": [5, 5, 4]}}]
+  },
+  "grid": {"min": [-1, 0, 0.5], "max": [1, 0, 1.5], "counts": [3, 1, 2], "placement": "ALL"},
+  "settings": {"shOrder": 2, "samplesPerProbe": 128, "maxDepth": 4, "seed": 3}
+})";
+
 v1::JobSpec DemoSpec() {
   absl::StatusOr<v1::JobSpec> spec = ReadJobFile(kDataDir + "/demo/demo.json");
   EXPECT_TRUE(spec.ok()) << spec.status();
@@ -212,6 +230,14 @@ std::vector<GoldenCase> Cases() {
          return spec;
        }},
       {"many_lights", ManyLightsSpec},
+      // A glTF box placed plainly and by a mirroring node (baker 18: the mirrored copy keeps its
+      // front faces), a probe inside each.
+      {"gltf_mirrored_node",
+       [] {
+         absl::StatusOr<v1::JobSpec> spec = ParseJobJson(kMirroredNodeJson);
+         EXPECT_TRUE(spec.ok()) << spec.status();
+         return *spec;
+       }},
   };
 }
 
