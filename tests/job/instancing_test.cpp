@@ -30,7 +30,7 @@ using testing::TempDir;
 using Matrix = std::array<double, 16>;  // row-major 4 x 4, the job file's `transform`
 
 // The nodes of the level: a box (mesh 0) placed by the first four (the fourth scaled to zero), a
-// quad (mesh 1) placed once by a node mirroring z, an emissive quad (mesh 2) placed twice.
+// quad (mesh 1) placed once by a node mirroring z, an emissive box (mesh 2, a lamp) placed twice.
 struct Node {
   int mesh;
   Matrix m;
@@ -91,11 +91,12 @@ std::string LevelGltf() {
          R"(]}], "nodes": [)" + nodes + R"(],
     "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 0}]},
                {"primitives": [{"attributes": {"POSITION": 2}, "indices": 3, "material": 0}]},
-               {"primitives": [{"attributes": {"POSITION": 2}, "indices": 3, "material": 1}]}],
+               {"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "material": 1}]}],
     "materials": [{"name": "grey", "pbrMetallicRoughness": {"baseColorFactor": [0.6, 0.6, 0.6, 1],
                                                             "metallicFactor": 0}},
                   {"name": "lamp", "emissiveFactor": [1, 0.9, 0.8],
-                   "pbrMetallicRoughness": {"metallicFactor": 0}}],
+                   "pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1],
+                                            "metallicFactor": 0}}],
     "accessors": [
       {"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
        "min": [0, 0, 0], "max": [1, 1, 1]},
@@ -188,7 +189,7 @@ TEST(Instancing, AMeshPlacedByManyNodesIsStoredOnce) {
     } else if (MaxComponent(material.emission) > 0) {
       // The lamp placed twice: world-space copies, a light per triangle.
       ++emissive;
-      EXPECT_EQ(mesh.TriangleCount(), 4u);
+      EXPECT_EQ(mesh.TriangleCount(), 24u);
     } else if (mesh.TriangleCount() == 2) {
       // The quad under the node mirroring z: the same plane, its front turned with the mirror,
       // +z in the file's frame to -z, which the job's transform turns to +y.
@@ -204,11 +205,11 @@ TEST(Instancing, AMeshPlacedByManyNodesIsStoredOnce) {
   EXPECT_EQ(quads, 1);
 }
 
-// The level's nodes place 54 triangles (4 x 12 of the box, the hidden node's included, 2 of the
-// quad, 2 x 2 of the lamp): up to that many the file is flattened, above it instanced.
+// The level's nodes place 74 triangles (4 x 12 of the box, the hidden node's included, 2 of the
+// quad, 2 x 12 of the lamp): up to that many the file is flattened, above it instanced.
 TEST(Instancing, FilesPlacingFewTrianglesAreFlattened) {
   Level level;
-  for (const int64_t flatten : {int64_t(54), int64_t(53)}) {
+  for (const int64_t flatten : {int64_t(74), int64_t(73)}) {
     const absl::StatusOr<BakeJob> job = Build(level.dir, LevelJob(), nullptr, nullptr, flatten);
     ASSERT_TRUE(job.ok()) << job.status();
     size_t instanced = 0, held = 0;
@@ -216,9 +217,9 @@ TEST(Instancing, FilesPlacingFewTrianglesAreFlattened) {
       instanced += !mesh.placements.empty();
       if (mesh.material != 0) held += mesh.TriangleCount();  // the file's meshes, not the room
     }
-    EXPECT_EQ(instanced, flatten == 54 ? 0u : 1u) << flatten;
+    EXPECT_EQ(instanced, flatten == 74 ? 0u : 1u) << flatten;
     // Flattened: the three boxes of non-zero volume, the quad and the lamp's two copies.
-    EXPECT_EQ(held, flatten == 54 ? 3 * 12 + 2 + 4u : 12 + 2 + 4u) << flatten;
+    EXPECT_EQ(held, flatten == 74 ? 3 * 12 + 2 + 24u : 12 + 2 + 24u) << flatten;
   }
   // The default: a level this small is flattened.
   const absl::StatusOr<v1::JobSpec> spec = ParseJobJson(LevelJob());
@@ -256,7 +257,7 @@ double Determinant3(const Matrix& m) {
          m[2] * (m[4] * m[9] - m[5] * m[8]);
 }
 
-// The same boxes and quads as separate meshes of the job, each placed by its own `transform`
+// The same boxes and the quad as separate meshes of the job, each placed by its own `transform`
 // (the job's times the node's), the lamp's two copies included. A job's transform keeps the
 // winding where a glTF node keeps the front faces: a mirroring node's copy is the file with its
 // winding reversed ("-flipped").
@@ -265,7 +266,7 @@ std::string CopiesJob() {
   for (const Node& node : Nodes()) {
     if (node.mesh == 0 && node.m[0] == 0) continue;  // the hidden node
     const bool flipped = Determinant3(node.m) < 0;
-    const char* file = node.mesh == 0 ? (flipped ? "box-flipped.obj" : "box.obj")
+    const char* file = node.mesh != 1 ? (flipped ? "box-flipped.obj" : "box.obj")
                                       : (flipped ? "quad-flipped.obj" : "quad.obj");
     const char* material = node.mesh == 2 ? "lamp" : "grey";
     absl::StrAppend(&meshes, R"({"file": ")", file, R"(", "material": ")", material,

@@ -33,6 +33,13 @@
 namespace probebake::job_internal {
 namespace {
 
+// An Embree instance and its placement hold about 1.3 KB (docs/performance-history.md), what
+// about 8 triangles of a flattened copy hold: a mesh of fewer triangles is copied, not instanced,
+// and the triangle limit counts each placement as that many triangles, so that a file placing
+// one small mesh millions of times cannot take more memory than the limit allows.
+constexpr int64_t kMinInstancedTriangles = 8;
+constexpr int64_t kPlacementTriangles = 8;
+
 // Row-major 3x4 affine transform in double (the last row is (0, 0, 0, 1)).
 using Affine = std::array<double, 12>;
 
@@ -629,6 +636,9 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
     std::map<std::vector<const aiMesh*>, uint32_t> groupOf;
     for (size_t n = 0; n < nodes; ++n) {
       if (placedBy[n].empty() || uses[placedBy[n]] < 2) continue;
+      int64_t faces = 0;
+      for (const aiMesh* mesh : placedBy[n]) faces += mesh->mNumFaces;
+      if (faces < kMinInstancedTriangles) continue;  // copies are cheaper than instances
       auto [it, added] = groupOf.emplace(placedBy[n], uint32_t(groupPlacements.size() + 1));
       if (added) {
         groupPlacements.emplace_back();
@@ -640,13 +650,15 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
           {Mat3d::FromRows({m[0], m[1], m[2]}, {m[4], m[5], m[6]}, {m[8], m[9], m[10]}),
            {m[3], m[7], m[11]}});
     }
-    // The triangles held: a group's once.
+    // The triangles held: a group's once, and each placement as kPlacementTriangles.
     triangles = trianglesBefore;
     for (const Instance& instance : instances) {
       const uint32_t group = groupOfNode[instance.node];
       if (group == 0 || writtenBy[group - 1] == instance.node)
         triangles += instance.mesh->mNumFaces;
     }
+    for (const std::vector<MeshPlacement>& placements : groupPlacements)
+      triangles += kPlacementTriangles * int64_t(placements.size());
   }
   if (maxTriangles > 0 && triangles > maxTriangles) {
     return FieldError(fieldPath, "the scene's triangles exceed the limit of " + Num(maxTriangles) +

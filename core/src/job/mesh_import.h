@@ -79,7 +79,8 @@ using ReferenceReader = std::function<absl::StatusOr<std::string>(const std::str
 // Reads `bytes` as `format` ("obj", "ply", "gltf", "glb"): polygons triangulated, points and lines
 // ignored, every mesh instance of the node tree merged with its accumulated node transform; but
 // when the nodes place more than `flattenUpToTriangles` triangles, the meshes that several nodes
-// place alike are kept once as a group with their transforms (JobLimits). The
+// place alike (8 triangles or more) are kept once as a group with their transforms (JobLimits).
+// The
 // files it references (an OBJ's mtllib and map_Kd/map_Ke/map_d textures, a glTF's external buffers
 // and images) are read through `readReference` only, never opened by path; a reference it cannot
 // read refuses the file. Without `fileMaterials` (the job gives the mesh a material) the files only
@@ -90,7 +91,8 @@ using ReferenceReader = std::function<absl::StatusOr<std::string>(const std::str
 // `format` reads the bytes (assimp would otherwise try each of its other formats), and a PLY header
 // is checked before assimp reads it. INVALID_ARGUMENT "<fieldPath>: ..." when assimp cannot read
 // it, when it holds no triangle, or when its triangles would bring the scene's count
-// (`trianglesBefore` before this file; a group's triangles count once) above `maxTriangles`
+// (`trianglesBefore` before this file; a group's triangles count once, each placement as 8)
+// above `maxTriangles`
 // (0: no limit); that check runs before any vertex is copied. `name` is the file's name for
 // messages.
 absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::string& format,

@@ -25,13 +25,14 @@ struct JobLimits {
   int64_t maxProbes = int64_t(1) << 22;
   // Triangles over every mesh of the scene, inline and from files, after triangulation and before
   // zero-area triangles are dropped; a mesh file's instanced meshes count once, however many nodes
-  // place them. ~170 bytes each in the scene and the BVH: 16M is ~3 GB.
+  // place them, and each placement as 8 triangles. ~170 bytes each in the scene and the BVH: 16M
+  // is ~3 GB.
   int64_t maxTriangles = int64_t(1) << 24;
   // A mesh file whose nodes place at most this many triangles is moved into world space whole
-  // (~700 MB at 4M): the fastest to trace. Above it, what several nodes place alike is kept once
-  // and instanced (one Embree scene placed per node: a fraction of the memory and build time,
-  // each ray 25-35% dearer on docs/performance-history.md's level). Not a limit; 0 instances every
-  // repeated mesh.
+  // (~700 MB at 4M): the fastest to trace. Above it, what several nodes place alike (8 triangles
+  // or more) is kept once and instanced (one Embree scene placed per node: a fraction of the memory
+  // and build time, each ray 25-35% dearer on docs/performance-history.md's level). Not a limit; 0
+  // instances every repeated mesh.
   int64_t flattenUpToTriangles = int64_t(1) << 22;
   // settings.samplesPerProbe (the sample cap of one probe).
   int64_t maxSamplesPerProbe = int64_t(1) << 24;
