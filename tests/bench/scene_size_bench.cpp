@@ -44,16 +44,12 @@ constexpr int kMeshes = 50, kPrimitives = 40, kMaterials = 8, kBoxTriangles = 12
 
 constexpr int64_t kFileTriangles = int64_t(kMeshes) * kPrimitives * kBoxTriangles;
 
-struct Level {
-  std::string jobPath;
-};
-
 void Append(std::string* bin, const void* data, size_t bytes) {
   bin->append(static_cast<const char*>(data), bytes);
 }
 
-// Writes level.gltf, level.bin and job.json into `dir`.
-Level WriteLevel(const std::filesystem::path& dir, int nodes) {
+// Writes level.gltf, level.bin and job.json into `dir`; returns the job's path.
+std::string WriteLevel(const std::filesystem::path& dir, int nodes) {
   std::string bin, accessors, meshes;
   const uint16_t boxIndices[36] = {0, 2, 1, 0, 3, 2, 4, 5, 6, 4, 6, 7, 0, 1, 5, 0, 5, 4,
                                    1, 2, 6, 1, 6, 5, 2, 3, 7, 2, 7, 6, 3, 0, 4, 3, 4, 7};
@@ -122,7 +118,7 @@ Level WriteLevel(const std::filesystem::path& dir, int nodes) {
                 "\"settings\":{\"samplesPerProbe\":16}}",
                 extent, extent);
   std::ofstream(dir / "job.json", std::ios::binary) << buffer;
-  return {(dir / "job.json").string()};
+  return (dir / "job.json").string();
 }
 
 // A fresh folder under the system's temporary folder, removed with the object.
@@ -152,8 +148,8 @@ absl::StatusOr<BakeJob> ImportLevel(const std::string& jobPath, bool instanced) 
 std::optional<BakeJob> LevelJob(benchmark::State& state) {
   Logger("job")->set_level(spdlog::level::warn);
   const TempDir dir;
-  const Level level = WriteLevel(dir.path, int(state.range(0)));
-  absl::StatusOr<BakeJob> job = ImportLevel(level.jobPath, state.range(1) != 0);
+  const std::string jobPath = WriteLevel(dir.path, int(state.range(0)));
+  absl::StatusOr<BakeJob> job = ImportLevel(jobPath, state.range(1) != 0);
   if (!job.ok()) {
     state.SkipWithError(std::string(job.status().message()).c_str());
     return std::nullopt;
@@ -187,7 +183,7 @@ void Report(benchmark::State& state, const Scene& scene, int64_t distinct, int64
 void BM_LevelImport(benchmark::State& state) {
   Logger("job")->set_level(spdlog::level::warn);
   const TempDir dir;
-  const Level level = WriteLevel(dir.path, int(state.range(0)));
+  const std::string jobPath = WriteLevel(dir.path, int(state.range(0)));
   int64_t held = 0;
   absl::StatusOr<BakeJob> job;
   for (auto _ : state) {
@@ -196,7 +192,7 @@ void BM_LevelImport(benchmark::State& state) {
     malloc_trim(0);
     const int64_t before = bench::CurrentRssBytes();
     state.ResumeTiming();
-    job = ImportLevel(level.jobPath, state.range(1) != 0);
+    job = ImportLevel(jobPath, state.range(1) != 0);
     if (!job.ok()) {
       state.SkipWithError(std::string(job.status().message()).c_str());
       return;

@@ -266,17 +266,15 @@ absl::StatusOr<std::unique_ptr<TracerScene>> TracerScene::Build(const Scene& sce
       };
       placed.linearNorm = norm(placed.linear);
       placed.conditioning = std::max(1.0, placed.linearNorm * norm(placed.inverse));
+      double frobenius = 0;
+      for (int r = 0; r < 3; ++r) frobenius += Dot(placed.inverse.Row(r), placed.inverse.Row(r));
+      placed.inverseStretch = std::sqrt(frobenius);
       placed.boundsMin = {kInf, kInf, kInf};
       placed.boundsMax = {-kInf, -kInf, -kInf};
-      for (int corner = 0; corner < 8; ++corner) {
-        const Vec3d x = placed.linear * Vec3d{corner & 1 ? open.hi.x : open.lo.x,
-                                              corner & 2 ? open.hi.y : open.lo.y,
-                                              corner & 4 ? open.hi.z : open.lo.z} +
-                        placed.translation;
-        placed.boundsMin = Min(placed.boundsMin, x);
-        placed.boundsMax = Max(placed.boundsMax, x);
-        grow(x);
-      }
+      GrowPlacedBox({placed.linear, placed.translation}, open.lo, open.hi, &placed.boundsMin,
+                    &placed.boundsMax);
+      grow(placed.boundsMin);
+      grow(placed.boundsMax);
       RTCGeometry instance = rtcNewGeometry(impl.device, RTC_GEOMETRY_TYPE_INSTANCE);
       rtcSetGeometryInstancedScene(instance, impl.prototypes.back());
       float xfm[12];
@@ -495,32 +493,13 @@ void TracerScene::FillHit(uint32_t geomID, uint32_t childGeomID, uint32_t primID
   hit->prim = primID;
   hit->u = u;
   hit->v = v;
-  if (info.placed != UINT32_MAX) {
-    // A placed mesh: interpolated in its own frame, then placed (both in double).
-    const Placed& placed = placed_[info.placed];
-    const uint32_t mesh = prototypeMeshes_[placed.prototype][childGeomID];
+  if (info.kind == SurfaceKind::kMesh) {
+    // A placed mesh's triangle is read in the mesh's own frame and placed below.
+    const Placed* placed = info.placed != UINT32_MAX ? &placed_[info.placed] : nullptr;
+    const uint32_t mesh = placed ? prototypeMeshes_[placed->prototype][childGeomID] : info.index;
     hit->index = mesh;
     const float* verts = meshVerts_[mesh];
     const uint32_t* idx = meshIndices_[mesh] + 3 * primID;
-    const double bu = u, bw = v, b0 = 1 - bu - bw;
-    const float* a = verts + 3 * idx[0];
-    const float* b = verts + 3 * idx[1];
-    const float* c = verts + 3 * idx[2];
-    const Vec3d own{b0 * a[0] + bu * b[0] + bw * c[0], b0 * a[1] + bu * b[1] + bw * c[1],
-                    b0 * a[2] + bu * b[2] + bw * c[2]};
-    hit->p = placed.linear * own + placed.translation;
-    float scale = 0;
-    for (int k = 0; k < 3; ++k)
-      scale = std::max({scale, std::fabs(a[k]), std::fabs(b[k]), std::fabs(c[k])});
-    // Embree intersects in the mesh's frame (error ~ its vertex magnitudes, scaled out by the
-    // linear part) after moving the ray there (error ~ the world coordinates, amplified by the
-    // linear part's conditioning).
-    hit->vertexScale = std::max(placed.linearNorm * double(scale),
-                                placed.conditioning * MaxComponent(Abs(hit->p)));
-    hit->ng = Normalize(placed.normals * Vec3d(normals_[mesh][primID]));
-  } else if (info.kind == SurfaceKind::kMesh) {
-    const float* verts = meshVerts_[info.index];
-    const uint32_t* idx = meshIndices_[info.index] + 3 * primID;
     // Interpolated in double: the point lies on the float triangle's plane to ~1e-16 of the
     // vertex magnitudes (a float interpolation would leave it ulps of those magnitudes off it).
     const double bu = u, bw = v, b0 = 1 - bu - bw;
@@ -534,9 +513,19 @@ void TracerScene::FillHit(uint32_t geomID, uint32_t childGeomID, uint32_t primID
     for (int k = 0; k < 3; ++k)
       scale = std::max({scale, std::fabs(a[k]), std::fabs(b[k]), std::fabs(c[k])});
     hit->vertexScale = scale;
-    // Embree's geometric normal, (v1 - v0) x (v2 - v0) like ours: no table lookup (a cache miss
-    // per hit in large scenes).
-    hit->ng = Normalize(ng);
+    if (placed == nullptr) {
+      // Embree's geometric normal, (v1 - v0) x (v2 - v0) like ours: no table lookup (a cache miss
+      // per hit in large scenes).
+      hit->ng = Normalize(ng);
+    } else {
+      hit->p = placed->linear * hit->p + placed->translation;
+      // Embree intersects in the mesh's frame (error ~ its vertex magnitudes, scaled out by the
+      // linear part) after moving the ray there (error ~ the world coordinates, amplified by the
+      // linear part's conditioning).
+      hit->vertexScale = std::max(placed->linearNorm * double(scale),
+                                  placed->conditioning * MaxComponent(Abs(hit->p)));
+      hit->ng = PlacedNormal(*placed, mesh, primID);
+    }
   } else {
     // Area lights end paths: their hit point is needed for pdfs only, never to spawn rays.
     hit->p = Vec3d(origin) + dir * hit->t;
@@ -620,14 +609,12 @@ void TracerScene::VisitMeshTrianglesNear(const Vec3d& p, double radius, Visit&& 
       apart = apart || p[a] < placed.boundsMin[a] - radius || p[a] > placed.boundsMax[a] + radius;
     if (apart) continue;
     const Vec3d q = placed.inverse * (p - placed.translation);
-    double frobenius = 0;
-    for (int r = 0; r < 3; ++r) frobenius += Dot(placed.inverse.Row(r), placed.inverse.Row(r));
     RTCPointQuery local;
     local.x = float(q.x);
     local.y = float(q.y);
     local.z = float(q.z);
     // Widened by float's rounding of the moved point, so a triangle at the edge is not culled.
-    local.radius = float(radius * std::sqrt(frobenius) * (1 + 1e-5) + 1e-6 * MaxComponent(Abs(q)));
+    local.radius = float(radius * placed.inverseStretch * (1 + 1e-5) + 1e-6 * MaxComponent(Abs(q)));
     local.time = 0;
     RTCPointQueryContext localContext;
     rtcInitPointQueryContext(&localContext);
@@ -670,9 +657,8 @@ bool TracerScene::MeshSurfaceAt(const Vec3d& p, SurfaceHit* on) const {
         on->p = q;
         on->t = distance;
         const uint32_t placed = geoms_[geomID].placed;
-        on->ng = placed == UINT32_MAX
-                     ? Vec3d(TriangleNormal(mesh, primID))
-                     : Normalize(placed_[placed].normals * Vec3d(TriangleNormal(mesh, primID)));
+        on->ng = placed == UINT32_MAX ? Vec3d(TriangleNormal(mesh, primID))
+                                      : PlacedNormal(placed_[placed], mesh, primID);
         on->vertexScale = vertexScale;
         on->kind = SurfaceKind::kMesh;
         on->index = mesh;

@@ -125,6 +125,8 @@ class TracerScene {
     Vec3d translation;
     // The float error of a placed hit grows by these over the mesh's own (tracer_scene.cpp).
     double linearNorm = 1, conditioning = 1;
+    // The Frobenius norm of inverse: a sphere of radius r maps into one of r times this.
+    double inverseStretch = 1;
     Vec3d boundsMin, boundsMax;  // local bounds of the placed mesh
   };
   struct Impl;
@@ -137,6 +139,10 @@ class TracerScene {
   void FillHit(uint32_t geomID, uint32_t childGeomID, uint32_t primID, float u, float v,
                const Vec3d& ng, float tfar, const Vec3f& origin, const Vec3d& dir,
                SurfaceHit* hit) const;
+  // The unit front normal of triangle `prim` of mesh `mesh` where `placed` puts it.
+  Vec3d PlacedNormal(const Placed& placed, uint32_t mesh, uint32_t prim) const {
+    return Normalize(placed.normals * Vec3d(normals_[mesh][prim]));
+  }
   // The top-level geometry of an Embree hit record.
   static uint32_t TopGeometry(uint32_t geomID, uint32_t instID) {
     return instID != 0xFFFFFFFFu ? instID : geomID;

@@ -118,7 +118,6 @@ absl::Status TransformLight(const Transform& t, const std::string& path, Light* 
   return absl::OkStatus();
 }
 
-// Builds the world-space mesh of job mesh `i` and makes its reference canonical.
 // An instanced mesh as world-space copies, one per placement. Refused when the copies would hold
 // more vertices than 32-bit indices reach.
 absl::StatusOr<TriangleMesh> PlacedCopies(const TriangleMesh& mesh, const std::string& path) {
@@ -142,6 +141,7 @@ absl::StatusOr<TriangleMesh> PlacedCopies(const TriangleMesh& mesh, const std::s
   return out;
 }
 
+// Builds the world-space mesh of job mesh `i` and makes its reference canonical.
 class MeshBuilder {
  public:
   // `jobLights`: the job's own lights, added after the meshes'.
@@ -239,6 +239,14 @@ class MeshBuilder {
       const MeshPlacement job{
           Mat3d::FromRows({t[0], t[1], t[2]}, {t[4], t[5], t[6]}, {t[8], t[9], t[10]}),
           {t[3], t[7], t[11]}};
+      // The job's transform keeps the winding (docs/job-format.md: a mirroring transform turns
+      // the front faces with it), while a placement keeps the front faces (scene.h, as a
+      // mirroring glTF node does): a mirroring job transform reverses the groups' own winding to
+      // say the same.
+      if (!raw.triangleGroups.empty() && Determinant(job.linear) < 0) {
+        for (size_t k = 0; k + 2 < raw.indices.size(); k += 3)
+          if (raw.triangleGroups[k / 3] > 0) std::swap(raw.indices[k + 1], raw.indices[k + 2]);
+      }
       for (size_t i = 0; i < mesh.positions.size(); ++i) {
         if (!grouped.empty() && grouped[i]) continue;
         Vec3d& p = mesh.positions[i];
@@ -255,17 +263,6 @@ class MeshBuilder {
             return FieldError(path + ".transform", "transformed node placements overflow");
           }
         }
-      }
-    }
-    // The job's transform keeps the winding (docs/job-format.md: a mirroring transform turns the
-    // front faces with it), while a placement keeps the front faces (scene.h, as a mirroring glTF
-    // node does): a mirroring job transform reverses the groups' own winding to say the same.
-    if (spec.transform_size() == 16 && !raw.triangleGroups.empty()) {
-      const auto& t = spec.transform();
-      if (Determinant(
-              Mat3d::FromRows({t[0], t[1], t[2]}, {t[4], t[5], t[6]}, {t[8], t[9], t[10]})) < 0) {
-        for (size_t k = 0; k + 2 < raw.indices.size(); k += 3)
-          if (raw.triangleGroups[k / 3] > 0) std::swap(raw.indices[k + 1], raw.indices[k + 2]);
       }
     }
     // A placement that flattens its mesh (a node scaled to zero, as files hide parts) holds no

@@ -59,6 +59,12 @@ Affine Compose(const Affine& a, const Affine& b) {  // a * b
   return r;
 }
 
+// The same transform as a placement (linear part and translation).
+MeshPlacement ToPlacement(const Affine& m) {
+  return {Mat3d::FromRows({m[0], m[1], m[2]}, {m[4], m[5], m[6]}, {m[8], m[9], m[10]}),
+          {m[3], m[7], m[11]}};
+}
+
 Vec3d Apply(const Affine& m, const aiVector3D& p) {
   const double x = p.x, y = p.y, z = p.z;
   return {m[0] * x + m[1] * y + m[2] * z + m[3], m[4] * x + m[5] * y + m[6] * z + m[7],
@@ -645,10 +651,7 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
         writtenBy.push_back(n);
       }
       groupOfNode[n] = it->second;
-      const Affine& m = *transformOf[n];
-      groupPlacements[it->second - 1].push_back(
-          {Mat3d::FromRows({m[0], m[1], m[2]}, {m[4], m[5], m[6]}, {m[8], m[9], m[10]}),
-           {m[3], m[7], m[11]}});
+      groupPlacements[it->second - 1].push_back(ToPlacement(*transformOf[n]));
     }
     // The triangles held: a group's once, and each placement as kPlacementTriangles.
     triangles = trianglesBefore;
@@ -763,10 +766,7 @@ absl::StatusOr<ImportedMesh> ImportMesh(std::string_view bytes, const std::strin
     }
     // A node that mirrors its mesh keeps the mesh's front faces (glTF: the determinant of the
     // node's transform decides the winding): the copy's winding is reversed.
-    const Affine& m = instance.transform;
-    const bool mirrored =
-        group == 0 && Determinant(Mat3d::FromRows({m[0], m[1], m[2]}, {m[4], m[5], m[6]},
-                                                  {m[8], m[9], m[10]})) < 0;
+    const bool mirrored = group == 0 && Determinant(ToPlacement(instance.transform).linear) < 0;
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
       const aiFace& face = mesh->mFaces[f];
       if (face.mNumIndices != 3) continue;  // points and lines sorted into this mesh

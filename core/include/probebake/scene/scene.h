@@ -94,23 +94,28 @@ struct TriangleMesh {
   }
 };
 
-// World bounds of `mesh` grown into [*lo, *hi]: its positions, or, when instanced, the corners of
-// their box under every placement (a box around the placed triangles, not always the tightest).
+// [*lo, *hi] grown by the corners of the box [a, b] under `placement` (a box around the placed
+// box, not always the tightest).
+inline void GrowPlacedBox(const MeshPlacement& placement, const Vec3d& a, const Vec3d& b, Vec3d* lo,
+                          Vec3d* hi) {
+  for (int k = 0; k < 8; ++k) {
+    const Vec3d x = placement.Apply({k & 1 ? b.x : a.x, k & 2 ? b.y : a.y, k & 4 ? b.z : a.z});
+    *lo = Min(*lo, x);
+    *hi = Max(*hi, x);
+  }
+}
+
+// World bounds of `mesh` grown into [*lo, *hi]: its positions, or, when instanced, their box
+// under every placement (GrowPlacedBox).
 inline void GrowMeshBounds(const TriangleMesh& mesh, Vec3d* lo, Vec3d* hi) {
-  const auto grow = [&](const Vec3d& p) {
-    *lo = Min(*lo, p);
-    *hi = Max(*hi, p);
-  };
   if (mesh.placements.empty()) {
-    for (const Vec3d& p : mesh.positions) grow(p);
+    for (const Vec3d& p : mesh.positions) *lo = Min(*lo, p), *hi = Max(*hi, p);
     return;
   }
   if (mesh.positions.empty()) return;
   Vec3d a = mesh.positions[0], b = mesh.positions[0];
   for (const Vec3d& p : mesh.positions) a = Min(a, p), b = Max(b, p);
-  for (const MeshPlacement& placement : mesh.placements)
-    for (int k = 0; k < 8; ++k)
-      grow(placement.Apply({k & 1 ? b.x : a.x, k & 2 ? b.y : a.y, k & 4 ? b.z : a.z}));
+  for (const MeshPlacement& placement : mesh.placements) GrowPlacedBox(placement, a, b, lo, hi);
 }
 
 struct PointLight {
