@@ -230,6 +230,80 @@ TEST(Instancing, FilesPlacingFewTrianglesAreFlattened) {
   for (const TriangleMesh& mesh : job->scene.meshes) EXPECT_TRUE(mesh.placements.empty());
 }
 
+// A glTF placing the unit box (12 triangles) under `boxes` nodes and a quad (2) under `quads`,
+// in a job of its own.
+std::string RepeatedJob(const TempDir& dir, int boxes, int quads) {
+  std::string bin;
+  for (const auto& c : kBoxCorners) Append<float>(&bin, {c[0], c[1], c[2]});
+  for (uint16_t i : kBoxTriangles) Append<uint16_t>(&bin, {i});
+  Append<float>(&bin, {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0});
+  Append<uint16_t>(&bin, {0, 1, 2, 0, 2, 3});
+  std::string nodes, roots;
+  for (int n = 0; n < boxes + quads; ++n) {
+    absl::StrAppend(&nodes, n ? "," : "", "{\"mesh\": ", n < boxes ? 0 : 1, ", \"translation\": [",
+                    2 * n, ", 0, 0]}");
+    absl::StrAppend(&roots, n ? "," : "", n);
+  }
+  dir.Write("repeated.gltf", R"({"asset": {"version": "2.0"}, "scene": 0,
+    "scenes": [{"nodes": [)" + roots +
+                                 R"(]}], "nodes": [)" + nodes + R"(],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]},
+               {"primitives": [{"attributes": {"POSITION": 2}, "indices": 3}]}],
+    "accessors": [
+      {"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
+       "min": [0, 0, 0], "max": [1, 1, 1]},
+      {"bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR"},
+      {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC3",
+       "min": [0, 0, 0], "max": [1, 1, 0]},
+      {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 96},
+                    {"buffer": 0, "byteOffset": 96, "byteLength": 72},
+                    {"buffer": 0, "byteOffset": 168, "byteLength": 48},
+                    {"buffer": 0, "byteOffset": 216, "byteLength": 12}],
+    "buffers": [{"byteLength": 228, "uri": "data:application/octet-stream;base64,)" +
+                                 absl::Base64Escape(bin) + R"("}]})");
+  return R"({"scene": {"materials": [{"name": "grey", "albedo": [0.5, 0.5, 0.5]}],
+      "meshes": [{"file": "repeated.gltf", "material": "grey"}]},
+    "grid": {"min": [0, 3, 1], "max": [0, 3, 1], "counts": [1, 1, 1], "placement": "ALL"},
+    "settings": {"samplesPerProbe": 16}})";
+}
+
+// Ten boxes and two quads: the quad (under 8 triangles) is copied, not instanced; instanced, the
+// file counts 12 + 10 x 8 (each placement as 8 triangles) + 2 x 2 = 96 triangles against the
+// limit, flattened the 10 x 12 + 2 x 2 = 124 it places.
+TEST(Instancing, SmallMeshesAreCopiedAndPlacementsCountAgainstTheLimit) {
+  TempDir dir;
+  const std::string json = RepeatedJob(dir, 10, 2);
+  const absl::StatusOr<v1::JobSpec> spec = ParseJobJson(json);
+  ASSERT_TRUE(spec.ok()) << spec.status();
+  const auto build = [&](int64_t maxTriangles, int64_t flatten) {
+    JobLimits limits;
+    limits.maxTriangles = maxTriangles;
+    limits.flattenUpToTriangles = flatten;
+    return BuildBakeJob(*spec, LocalAssetSource(dir.path()), limits);
+  };
+  const absl::StatusOr<BakeJob> job = build(96, 0);
+  ASSERT_TRUE(job.ok()) << job.status();
+  size_t instanced = 0, copied = 0;
+  for (const TriangleMesh& mesh : job->scene.meshes) {
+    if (!mesh.placements.empty()) {
+      ++instanced;
+      EXPECT_EQ(mesh.TriangleCount(), 12u);
+      EXPECT_EQ(mesh.placements.size(), 10u);
+    } else {
+      copied += mesh.TriangleCount();
+    }
+  }
+  EXPECT_EQ(instanced, 1u);
+  EXPECT_EQ(copied, 4u);  // the quad's two copies
+  const absl::Status over = build(95, 0).status();
+  EXPECT_NE(over.message().find("exceed the limit of 95"), absl::string_view::npos) << over;
+  // Flattened, the same limit refuses the 124 triangles the file places.
+  const absl::Status flat = build(96, int64_t(1) << 22).status();
+  EXPECT_NE(flat.message().find("exceed the limit of 96"), absl::string_view::npos) << flat;
+  EXPECT_TRUE(build(124, int64_t(1) << 22).ok());
+}
+
 TEST(Instancing, PlacementsSurviveTheHandOver) {
   Level level;
   MeshImports recorded;
