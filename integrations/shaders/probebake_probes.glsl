@@ -4,9 +4,11 @@
 // each of the 8 grid probes around x that holds light (alpha >= 0.5) weighs
 //   trilinear(x) * backface * visibility,
 // backface = ((dot(dir to the probe, n) + 1) / 2)^2 + 0.2 (the probe where it was baked: grid
-// point + offset), visibility = Chebyshev's bound from the probe's moments of 1/t, the smaller of
-// its values at x + n * bias and at x, weights below 0.2 crushed to w^3 / 0.2^2; the blend is
-// normalised. Without the offset texture probes sit at their grid points; without the visibility
+// point + offset), visibility = the smaller of Chebyshev's bound from the probe's moments of 1/t
+// (itself the smaller of its values at x + n * bias and at x) and the probe's connectivity
+// (pbBlendSh: how well the probes it is connected to see x, against the best connected), weights
+// below 0.2 crushed to w^3 / 0.2^2; the blend is normalised.
+// Without the offset texture probes sit at their grid points; without the visibility
 // atlas the weight is trilinear * backface. E(n) = sum_l A_l sum_m L_lm Y_lm(n) with probebake's
 // SH basis (Condon-Shortley signs, +Z polar).
 //
@@ -171,27 +173,76 @@ int pbBlendSh(vec3 x, vec3 n, out vec3 c[9]) {
   vec3 g = clamp((x - pbGridOrigin) / pbGridSpacing, vec3(0.0), vec3(pbGridCounts - 1));
   ivec3 i0 = min(ivec3(floor(g)), max(pbGridCounts - 2, ivec3(0)));
   vec3 f = clamp(g - vec3(i0), 0.0, 1.0);
-  // First the weights before crushing and trilinear, then the crush relative to the largest: when
-  // every probe is crushed, w^3 / 0.2^2 underflows float for the hidden ones (w down to 1e-30),
-  // and the blend depends only on the ratios w / max w.
-  float v[8], tri[8];
-  float vmax = 0.0;
+  // The cell's corners: which hold light, where they were baked, their trilinear weights and how
+  // well each sees x.
+  bool usable[8];
+  ivec3 probe[8];
+  vec3 probePos[8];
+  float tri[8], seen[8];
   for (int corner = 0; corner < 8; corner++) {
     ivec3 o = ivec3(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
-    ivec3 q = min(i0 + o, pbGridCounts - 1);
+    probe[corner] = min(i0 + o, pbGridCounts - 1);
     vec3 wv = mix(1.0 - f, f, vec3(o));
     tri[corner] = wv.x * wv.y * wv.z;
+    usable[corner] = texelFetch(pbL0_validity, probe[corner], 0).a >= 0.5;
+    probePos[corner] = pbGridOrigin + vec3(probe[corner]) * pbGridSpacing;
+    if (pbHasOffsets) probePos[corner] += texelFetch(pboffset_filled, probe[corner], 0).xyz;
+    seen[corner] = 1.0;
+    if (pbHasVisibility && usable[corner] && tri[corner] > 0.0)
+      seen[corner] = min(pbProbeVisibility(probe[corner], probePos[corner], biased),
+                         pbProbeVisibility(probe[corner], probePos[corner], x));
+  }
+  // Connectivity: b[8i + j] the bottleneck, over paths of cell edges from corner i to corner j,
+  // of the edges' visibility (the smaller of each end's visibility of the other). A probe's
+  // support is sum_j seen_j b[8i + j] over the corners weighing in; each probe counts at most
+  // (support / the largest support)^8.
+  float connected[8];
+  for (int i = 0; i < 8; i++) connected[i] = 1.0;
+  if (pbHasVisibility) {
+    float b[64];
+    for (int i = 0; i < 64; i++) b[i] = i / 8 == i % 8 ? 1.0 : 0.0;
+    for (int i = 0; i < 8; i++) {
+      for (int a = 0; a < 3; a++) {
+        int j = i | (1 << a);
+        if (j == i || !usable[i] || !usable[j]) continue;
+        float e = min(pbProbeVisibility(probe[i], probePos[i], probePos[j]),
+                      pbProbeVisibility(probe[j], probePos[j], probePos[i]));
+        b[8 * i + j] = e;
+        b[8 * j + i] = e;
+      }
+    }
+    for (int m = 0; m < 8; m++)
+      for (int i = 0; i < 8; i++)
+        for (int j = 0; j < 8; j++) b[8 * i + j] = max(b[8 * i + j], min(b[8 * i + m], b[8 * m + j]));
+    float support[8];
+    float most = 0.0;
+    for (int i = 0; i < 8; i++) {
+      support[i] = 0.0;
+      for (int j = 0; j < 8; j++)
+        if (usable[j] && tri[j] > 0.0) support[i] += seen[j] * b[8 * i + j];
+      if (usable[i] && tri[i] > 0.0) most = max(most, support[i]);
+    }
+    if (most > 0.0) {
+      for (int i = 0; i < 8; i++) {
+        float r = support[i] / most;
+        float r2 = r * r, r4 = r2 * r2;
+        connected[i] = r4 * r4;
+      }
+    }
+  }
+  // The weights before crushing and trilinear, then the crush relative to the largest: when
+  // every probe is crushed, w^3 / 0.2^2 underflows float for the hidden ones (w down to 1e-30),
+  // and the blend depends only on the ratios w / max w.
+  float v[8];
+  float vmax = 0.0;
+  for (int corner = 0; corner < 8; corner++) {
     v[corner] = 0.0;
-    if (tri[corner] <= 0.0 || texelFetch(pbL0_validity, q, 0).a < 0.5) continue;
-    vec3 probePos = pbGridOrigin + vec3(q) * pbGridSpacing;
-    if (pbHasOffsets) probePos += texelFetch(pboffset_filled, q, 0).xyz;
-    vec3 toProbe = probePos - x;
+    if (tri[corner] <= 0.0 || !usable[corner]) continue;
+    vec3 toProbe = probePos[corner] - x;
     float len = length(toProbe);
     float h = ((len > 0.0 ? dot(toProbe / len, n) : 1.0) + 1.0) * 0.5;
     float w = h * h + 0.2;
-    if (pbHasVisibility)
-      w = max(w * min(pbProbeVisibility(q, probePos, biased), pbProbeVisibility(q, probePos, x)),
-              pbMinWeight);
+    if (pbHasVisibility) w = max(w * min(seen[corner], connected[corner]), pbMinWeight);
     v[corner] = w;
     vmax = max(vmax, w);
   }
@@ -208,9 +259,8 @@ int pbBlendSh(vec3 x, vec3 n, out vec3 c[9]) {
       w *= w * w / (pbCrush * pbCrush);
     }
     w *= tri[corner];
-    ivec3 o = ivec3(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
     vec3 p[9];
-    pbProbeSh(min(i0 + o, pbGridCounts - 1), p);
+    pbProbeSh(probe[corner], p);
     for (int k = 0; k < 9; k++) c[k] += w * p[k];
     total += w;
     probes++;

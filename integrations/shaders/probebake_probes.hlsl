@@ -140,25 +140,69 @@ int pbBlendSh(float3 x, float3 n, out float3 c[9]) {
   float3 g = clamp((x - pbGridOrigin) / pbGridSpacing, 0.0, float3(pbGridCounts - 1));
   int3 i0 = min(int3(floor(g)), max(pbGridCounts - 2, int3(0, 0, 0)));
   float3 f = saturate(g - float3(i0));
-  float v[8], tri[8];
-  float vmax = 0.0;
+  bool usable[8];
+  int3 probe[8];
+  float3 probePos[8];
+  float tri[8], seen[8];
   [unroll] for (int corner = 0; corner < 8; corner++) {
     int3 o = int3(corner & 1, (corner >> 1) & 1, (corner >> 2) & 1);
-    int3 q = min(i0 + o, pbGridCounts - 1);
+    probe[corner] = min(i0 + o, pbGridCounts - 1);
     float3 wv = lerp(1.0 - f, f, float3(o));
     tri[corner] = wv.x * wv.y * wv.z;
-    v[corner] = 0.0;
-    if (tri[corner] <= 0.0 || pbL0_validity.Load(int4(q, 0)).a < 0.5) continue;
-    float3 probePos = pbGridOrigin + float3(q) * pbGridSpacing;
-    if (pbHasOffsets) probePos += pboffset_filled.Load(int4(q, 0)).xyz;
-    float3 toProbe = probePos - x;
+    usable[corner] = pbL0_validity.Load(int4(probe[corner], 0)).a >= 0.5;
+    probePos[corner] = pbGridOrigin + float3(probe[corner]) * pbGridSpacing;
+    if (pbHasOffsets) probePos[corner] += pboffset_filled.Load(int4(probe[corner], 0)).xyz;
+    seen[corner] = 1.0;
+    if (pbHasVisibility && usable[corner] && tri[corner] > 0.0)
+      seen[corner] = min(pbProbeVisibility(probe[corner], probePos[corner], biased),
+                         pbProbeVisibility(probe[corner], probePos[corner], x));
+  }
+  float connected[8];
+  [unroll] for (int i1 = 0; i1 < 8; i1++) connected[i1] = 1.0;
+  if (pbHasVisibility) {
+    float b[64];
+    [unroll] for (int i2 = 0; i2 < 64; i2++) b[i2] = i2 / 8 == i2 % 8 ? 1.0 : 0.0;
+    [unroll] for (int i3 = 0; i3 < 8; i3++) {
+      [unroll] for (int a = 0; a < 3; a++) {
+        int j = i3 | (1 << a);
+        if (j == i3 || !usable[i3] || !usable[j]) continue;
+        float e = min(pbProbeVisibility(probe[i3], probePos[i3], probePos[j]),
+                      pbProbeVisibility(probe[j], probePos[j], probePos[i3]));
+        b[8 * i3 + j] = e;
+        b[8 * j + i3] = e;
+      }
+    }
+    [loop] for (int m = 0; m < 8; m++)
+      [loop] for (int i4 = 0; i4 < 8; i4++)
+        [unroll] for (int j4 = 0; j4 < 8; j4++)
+          b[8 * i4 + j4] = max(b[8 * i4 + j4], min(b[8 * i4 + m], b[8 * m + j4]));
+    float support[8];
+    float most = 0.0;
+    [unroll] for (int i5 = 0; i5 < 8; i5++) {
+      support[i5] = 0.0;
+      [unroll] for (int j5 = 0; j5 < 8; j5++)
+        if (usable[j5] && tri[j5] > 0.0) support[i5] += seen[j5] * b[8 * i5 + j5];
+      if (usable[i5] && tri[i5] > 0.0) most = max(most, support[i5]);
+    }
+    if (most > 0.0) {
+      [unroll] for (int i6 = 0; i6 < 8; i6++) {
+        float r = support[i6] / most;
+        float r2 = r * r, r4 = r2 * r2;
+        connected[i6] = r4 * r4;
+      }
+    }
+  }
+  float v[8];
+  float vmax = 0.0;
+  [unroll] for (int corner1 = 0; corner1 < 8; corner1++) {
+    v[corner1] = 0.0;
+    if (tri[corner1] <= 0.0 || !usable[corner1]) continue;
+    float3 toProbe = probePos[corner1] - x;
     float len = length(toProbe);
     float h = ((len > 0.0 ? dot(toProbe / len, n) : 1.0) + 1.0) * 0.5;
     float w = h * h + 0.2;
-    if (pbHasVisibility)
-      w = max(w * min(pbProbeVisibility(q, probePos, biased), pbProbeVisibility(q, probePos, x)),
-              pbMinWeight);
-    v[corner] = w;
+    if (pbHasVisibility) w = max(w * min(seen[corner1], connected[corner1]), pbMinWeight);
+    v[corner1] = w;
     vmax = max(vmax, w);
   }
   [unroll] for (int k = 0; k < 9; k++) c[k] = float3(0.0, 0.0, 0.0);
@@ -174,9 +218,8 @@ int pbBlendSh(float3 x, float3 n, out float3 c[9]) {
       w *= w * w / (pbCrush * pbCrush);
     }
     w *= tri[corner2];
-    int3 o = int3(corner2 & 1, (corner2 >> 1) & 1, (corner2 >> 2) & 1);
     float3 p[9];
-    pbProbeSh(min(i0 + o, pbGridCounts - 1), p);
+    pbProbeSh(probe[corner2], p);
     [unroll] for (int k2 = 0; k2 < 9; k2++) c[k2] += w * p[k2];
     total += w;
     probes++;

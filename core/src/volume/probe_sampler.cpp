@@ -18,6 +18,51 @@ namespace {
 constexpr double kCrush = 0.2;
 constexpr double kMinWeight = 1e-30;
 
+double Square(double x) {
+  return x * x;
+}
+
+// A corner of the cell around the sampled point x: whether its probe holds light, where it was
+// baked, its trilinear weight and how well it sees x (Chebyshev, 1 without visibility).
+struct Corner {
+  bool usable = false;
+  int64_t probe = 0;
+  Vec3d position;
+  double trilinear = 0, seen = 1;
+};
+
+// The cell's connectivity (probe_sampler.h): b[i][j] the bottleneck, over paths of cell edges
+// from corner i to corner j, of the edges' visibility (the smaller of each end's visibility of
+// the other); a corner's support sum_j seen_j b[i][j] over the corners weighing in; connected[i]
+// = (support_i / the largest support)^8, left at 1 where no corner weighs in.
+void Connectivity(const ProbeVolume& volume, const Corner (&corners)[8], double (&connected)[8]) {
+  double b[8][8] = {};
+  for (int i = 0; i < 8; ++i) {
+    b[i][i] = 1;
+    for (int a = 0; a < 3; ++a) {
+      const int j = i | (1 << a);
+      if (j == i || !corners[i].usable || !corners[j].usable) continue;
+      b[i][j] = b[j][i] = std::min(
+          ProbeVisibility(volume, corners[i].probe, corners[i].position, corners[j].position),
+          ProbeVisibility(volume, corners[j].probe, corners[j].position, corners[i].position));
+    }
+  }
+  for (int m = 0; m < 8; ++m)
+    for (int i = 0; i < 8; ++i)
+      for (int j = 0; j < 8; ++j) b[i][j] = std::max(b[i][j], std::min(b[i][m], b[m][j]));
+  double support[8] = {}, most = 0;
+  for (int i = 0; i < 8; ++i) {
+    for (int j = 0; j < 8; ++j)
+      if (corners[j].usable && corners[j].trilinear > 0) support[i] += corners[j].seen * b[i][j];
+    if (corners[i].usable && corners[i].trilinear > 0) most = std::max(most, support[i]);
+  }
+  if (!(most > 0)) return;
+  for (int i = 0; i < 8; ++i) {
+    const double r2 = Square(support[i] / most), r4 = r2 * r2;
+    connected[i] = r4 * r4;
+  }
+}
+
 }  // namespace
 
 ProbeSampler::ProbeSampler(const ProbeVolume& volume, ProbeSamplerOptions options)
@@ -47,43 +92,57 @@ ProbeSample ProbeSampler::Sample(const Vec3d& position, const Vec3d& normal) con
     alpha[a] = count > 1 ? f - base[a] : 0.0;
   }
 
+  Corner corners[8];
+  const bool visibility = options_.visibility && !volume_.visibility.empty();
+  for (int k = 0; k < 8; ++k) {
+    int c[3];
+    double trilinear = 1;
+    for (int a = 0; a < 3; ++a) {
+      const int bit = (k >> a) & 1;
+      c[a] = std::min(base[a] + bit, grid.counts[a] - 1);
+      trilinear *= bit ? alpha[a] : 1 - alpha[a];
+    }
+    const int64_t p = grid.LinearIndex(c[0], c[1], c[2]);
+    const bool filled = !volume_.filled.empty() && volume_.filled[size_t(p)] > 0.5f;
+    if (!volume_.active[size_t(p)] || !(volume_.validity[size_t(p)] >= 0.5f || filled)) continue;
+    Corner& corner = corners[k];
+    corner.usable = true;
+    corner.probe = p;
+    corner.trilinear = trilinear;
+    corner.position = grid.Position(c[0], c[1], c[2]);
+    if (!volume_.offset.empty()) {
+      const float* o = &volume_.offset[3 * size_t(p)];
+      corner.position += Vec3d(o[0], o[1], o[2]);
+    }
+    if (visibility && trilinear > 0)
+      corner.seen = std::min(ProbeVisibility(volume_, p, corner.position, biased),
+                             ProbeVisibility(volume_, p, corner.position, position));
+  }
+  double connected[8] = {1, 1, 1, 1, 1, 1, 1, 1};
+  if (visibility && options_.connectivity) Connectivity(volume_, corners, connected);
+
   ProbeSample out;
   out.radianceSh.assign(size_t(coeffs), Vec3d{0, 0, 0});
   std::vector<Vec3d> blended(size_t(coeffs), Vec3d{0, 0, 0});
   double total = 0;
-  const bool visibility = options_.visibility && !volume_.visibility.empty();
-  for (int corner = 0; corner < 8; ++corner) {
-    int c[3];
-    double trilinear = 1;
-    for (int a = 0; a < 3; ++a) {
-      const int bit = (corner >> a) & 1;
-      c[a] = std::min(base[a] + bit, grid.counts[a] - 1);
-      trilinear *= bit ? alpha[a] : 1 - alpha[a];
-    }
-    if (trilinear <= 0) continue;
-    const int64_t p = grid.LinearIndex(c[0], c[1], c[2]);
-    const bool filled = !volume_.filled.empty() && volume_.filled[size_t(p)] > 0.5f;
-    if (!volume_.active[size_t(p)] || !(volume_.validity[size_t(p)] >= 0.5f || filled)) continue;
-    Vec3d probePos = grid.Position(c[0], c[1], c[2]);
-    if (!volume_.offset.empty()) {
-      const float* o = &volume_.offset[3 * size_t(p)];
-      probePos += Vec3d(o[0], o[1], o[2]);
-    }
+  for (int k = 0; k < 8; ++k) {
+    const Corner& corner = corners[k];
+    if (!corner.usable || corner.trilinear <= 0) continue;
+    const int64_t p = corner.probe;
     double w = 1;
     if (options_.backfaceWeight) {
-      const Vec3d toProbe = probePos - position;
+      const Vec3d toProbe = corner.position - position;
       const double len = Length(toProbe);
       const double cosine = len > 0 ? Dot(toProbe / len, n) : 1.0;
       const double h = (cosine + 1) / 2;
       w *= h * h + 0.2;
     }
     if (visibility) {
-      w *= std::min(ProbeVisibility(volume_, p, probePos, biased),
-                    ProbeVisibility(volume_, p, probePos, position));
+      w *= std::min(corner.seen, connected[k]);
       w = std::max(w, kMinWeight);
       if (w < kCrush) w *= w * w / (kCrush * kCrush);
     }
-    w *= trilinear;
+    w *= corner.trilinear;
     total += w;
     ++out.probes;
     for (int i = 0; i < coeffs; ++i) {

@@ -1,7 +1,9 @@
 // The reference sampler of a probe volume: the lighting at any point and surface normal from the
 // 8 probes around it, weighted as DDGI does (Majercik et al. 2019, "Dynamic Diffuse Global
-// Illumination with Ray-Traced Irradiance Fields"; McGuire et al. 2017, light-field probes).
-// Engines that sample the volume themselves should match it.
+// Illumination with Ray-Traced Irradiance Fields"; McGuire et al. 2017, light-field probes), and
+// by the cell's connectivity, which cuts off the probes beyond a wall that Chebyshev's bound
+// alone lets through where they see the point at a grazing angle. Engines that sample the volume
+// themselves should match it (integrations/shaders/ do).
 //
 // For a point x with unit normal n, in scene coordinates:
 //   - the cell of the grid holding x (clamped to the grid) gives 8 probes; each active probe
@@ -12,13 +14,21 @@
 //       baked (grid point + offset): probes behind the surface count less, never nothing;
 //     - visibility, with the volume's moments (the mean and mean square of the inverse
 //       first-hit distance s = 1/t in the direction from the probe to a point y at distance d,
-//       probebake/volume/visibility_map.h): ProbeVisibility there. It is taken at two points
+//       probebake/volume/visibility_map.h): seen = ProbeVisibility there, taken at two points
 //       and the smaller kept: xb = x + n * normalBias * s (s the grid's smallest spacing; DDGI's
 //       normal bias, so that a surface does not ask a probe about its own plane), and x itself,
-//       so that a bias that crosses a thin wall cannot make the probes beyond it visible. Then
-//       weights below 0.2 are crushed, w -> w^3 / 0.2^2, after a floor of 1e-30 so that a point
-//       hidden from all 8 probes still gets their blend. The cell is chosen at x, not xb, for the
-//       same reason;
+//       so that a bias that crosses a thin wall cannot make the probes beyond it visible;
+//     - connectivity: the cell's 12 edges each get the smaller of its two probes' visibility of
+//       the other, and b(i, j) is the bottleneck (the largest, over paths of edges from corner i
+//       to corner j, of the smallest edge on the path), so the probes on one side of a wall
+//       through the cell are connected and the two sides cut apart. A probe's support is
+//       sum_j seen_j b(i, j) over the probes weighing in, how well the probes on its side see x;
+//       the probe counts at most (support / the largest support)^8: a side whose probes see x
+//       half as well as the other's weighs under 0.4%, sides that see x alike both count;
+//     the probe's visibility is min(seen, connectivity). Then weights below 0.2 are crushed, w ->
+//     w^3 / 0.2^2, after a floor of 1e-30 so that a point hidden from all 8
+//       probes still gets their blend. The cell is chosen at x, not xb, for the same reason as
+//       the second visibility point;
 //   - the blend is normalised by the weights' sum.
 // Irradiance is E(n) = sum_i E_i Y_i(n), E_i the blended irradiance SH when the volume has them,
 // else the blended radiance SH times the clamped cosine's band factors; the blended radiance SH
@@ -41,6 +51,8 @@ struct ProbeSamplerOptions {
   double normalBias = 0.01;
   bool visibility = true;  // Chebyshev weights (when the volume has moments)
   bool backfaceWeight = true;
+  // With visibility: the cell's connectivity. Off, the weights are DDGI's (for comparison).
+  bool connectivity = true;
 };
 
 struct ProbeSample {
