@@ -121,6 +121,17 @@ inline BakeJob TwoRoomsWithThinWall(double firstX) {
   return job;
 }
 
+// The 26 unit directions to a cube's faces, edges and corners from its centre: the normals the
+// leak tests sample each point with.
+inline std::vector<Vec3d> CubeDirections() {
+  std::vector<Vec3d> out;
+  for (int i = -1; i <= 1; ++i)
+    for (int j = -1; j <= 1; ++j)
+      for (int k = -1; k <= 1; ++k)
+        if (i || j || k) out.push_back(Normalize(Vec3d(i, j, k)));
+  return out;
+}
+
 // Coefficients of one probe, RGB per coefficient, with their standard errors.
 struct ProbeResult {
   std::vector<Vec3d> radiance, stdError;

@@ -210,11 +210,7 @@ std::vector<Query> ConnectivityQueries(const ProbeTextures& packed, size_t limit
   ProbeSamplerOptions options;
   options.connectivity = false;
   const ProbeSampler without(volume, options);
-  std::vector<Vec3d> normals;
-  for (int i = -1; i <= 1; ++i)
-    for (int j = -1; j <= 1; ++j)
-      for (int k = -1; k <= 1; ++k)
-        if (i || j || k) normals.push_back(Normalize(Vec3d(i, j, k)));
+  const std::vector<Vec3d> normals = CubeDirections();
   std::vector<Query> found;
   for (double delta : {0.02, 0.05, 0.09, 0.125})
     for (double x : {kTwoRoomsWall + delta, -delta})

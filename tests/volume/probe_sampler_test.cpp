@@ -45,11 +45,7 @@ struct Leak {
 // only), against the lit room's at the mirrored points.
 Leak MeasureLeak(const ProbeVolume& volume, const ProbeSamplerOptions& options) {
   const ProbeSampler sampler(volume, options);
-  std::vector<Vec3d> normals;
-  for (int i = -1; i <= 1; ++i)
-    for (int j = -1; j <= 1; ++j)
-      for (int k = -1; k <= 1; ++k)
-        if (i || j || k) normals.push_back(Normalize(Vec3d(i, j, k)));
+  const std::vector<Vec3d> normals = CubeDirections();
   double litSum = 0, litLeast = 0;
   int64_t litCount = 0;
   Leak leak;
