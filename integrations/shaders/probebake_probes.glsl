@@ -6,8 +6,8 @@
 // backface = ((dot(dir to the probe, n) + 1) / 2)^2 + 0.2 (the probe where it was baked: grid
 // point + offset), visibility = the smaller of Chebyshev's bound from the probe's moments of 1/t
 // (itself the smaller of its values at x + n * bias and at x) and the probe's connectivity
-// (pbBlendSh: how well the probes it is connected to see x, against the best connected), weights
-// below 0.2 crushed to w^3 / 0.2^2; the blend is normalised.
+// (pbBlendSh: whether the probes it is connected to have x on their side of what blocks the
+// cell's edges), weights below 0.2 crushed to w^3 / 0.2^2; the blend is normalised.
 // Without the offset texture probes sit at their grid points; without the visibility
 // atlas the weight is trilinear * backface. E(n) = sum_l A_l sum_m L_lm Y_lm(n) with probebake's
 // SH basis (Condon-Shortley signs, +Z polar).
@@ -125,39 +125,60 @@ ivec2 pbWrappedTexel(ivec2 t) {
   return t;
 }
 
-// Visibility in [0, 1] of point x from probe `probe` baked at probePos: the moments of the four
-// texels around the direction to x, each texel's 1/t scaled by 1 / |its centre direction|_1 so a
-// plane stays linear in the map, blended bilinearly and scaled back by |direction|_1; the
-// variance less what the trend between the texels explains, at least (7.7% of the mean)^2; then
-// 1 where 1/|x - probePos| >= mean, else Chebyshev's one-sided bound, cubed.
-float pbProbeVisibility(ivec3 probe, vec3 probePos, vec3 x) {
-  vec3 fromProbe = x - probePos;
-  float d = length(fromProbe);
-  if (!(d > 0.0)) return 1.0;
-  vec3 w = fromProbe / d;
+// The mean and variance of s = 1/t that probe `probe` saw around unit direction w: the moments
+// of the four texels around w, each texel's 1/t scaled by 1 / |its centre direction|_1 so a plane
+// stays linear in the map (raw 1/t where a tap lies across the map's seam, whose mirrored taps do
+// not surround w), blended bilinearly over the texels some ray went through and scaled back by
+// |w|_1; the variance less what the trend between the texels explains, at least (7.7% of the
+// mean)^2. False when no ray went through any of the four.
+bool pbVisibilityMoments(ivec3 probe, vec3 w, out float mean, out float variance) {
   vec2 f = (pbOctahedralEncode(w) + 1.0) * 0.5 * float(pbVisSize) - 0.5;
   ivec2 ij = ivec2(floor(f));
   vec2 ab = f - vec2(ij);
-  float mean = 0.0, variance = 0.0;
-  float q[4], tap[4];
+  bool wrapped = ij.x < 0 || ij.y < 0 || ij.x + 1 >= pbVisSize || ij.y + 1 >= pbVisSize;
+  float q[4], tap[4], weight[4], scale[4];
+  vec4 m[4];
+  float total = 0.0;
   for (int k = 0; k < 4; k++) {
     ivec2 o = ivec2(k & 1, k >> 1);
     ivec2 t = pbWrappedTexel(ij + o);
     vec3 centre = pbOctahedralDecode((vec2(t) + 0.5) / float(pbVisSize) * 2.0 - 1.0);
-    float scale = 1.0 / (abs(centre.x) + abs(centre.y) + abs(centre.z));
-    vec4 m = texelFetch(pbvisibility, ivec3(pbVisSize * probe.xy + t, probe.z), 0);
+    scale[k] = wrapped ? 1.0 : 1.0 / (abs(centre.x) + abs(centre.y) + abs(centre.z));
+    m[k] = texelFetch(pbvisibility, ivec3(pbVisSize * probe.xy + t, probe.z), 0);
     tap[k] = (o.x == 1 ? ab.x : 1.0 - ab.x) * (o.y == 1 ? ab.y : 1.0 - ab.y);
-    q[k] = scale * m.x;
-    mean += tap[k] * q[k];
-    variance += tap[k] * scale * scale * max(m.y - m.x * m.x, 0.0);
+    weight[k] = m[k].z > 0.0 ? tap[k] : 0.0;
+    total += weight[k];
   }
+  mean = 0.0;
+  variance = 0.0;
+  if (!(total > 0.0)) return false;
+  for (int k = 0; k < 4; k++) {
+    q[k] = scale[k] * m[k].x;
+    weight[k] /= total;
+    mean += weight[k] * q[k];
+    variance += weight[k] * scale[k] * scale[k] * max(m[k].y - m[k].x * m[k].x, 0.0);
+  }
+  for (int k = 0; k < 4; k++)
+    if (weight[k] == 0.0) q[k] = mean;
   float wu = tap[1] + tap[3], wv = tap[2] + tap[3];
   float gu = (q[1] - q[0]) * (1.0 - wv) + (q[3] - q[2]) * wv;
   float gv = (q[2] - q[0]) * (1.0 - wu) + (q[3] - q[1]) * wu;
   variance = max(variance - (gu * gu + gv * gv) / 12.0, pbMinRelativeVariance * mean * mean);
-  float l1 = abs(w.x) + abs(w.y) + abs(w.z);
+  float l1 = wrapped ? 1.0 : abs(w.x) + abs(w.y) + abs(w.z);
   mean *= l1;
   variance *= l1 * l1;
+  return true;
+}
+
+// Visibility in [0, 1] of point x from probe `probe` baked at probePos: 1 where
+// 1/|x - probePos| >= the mean of 1/t that way or no ray went that way, else Chebyshev's
+// one-sided bound, cubed.
+float pbProbeVisibility(ivec3 probe, vec3 probePos, vec3 x) {
+  vec3 fromProbe = x - probePos;
+  float d = length(fromProbe);
+  if (!(d > 0.0)) return 1.0;
+  float mean, variance;
+  if (!pbVisibilityMoments(probe, fromProbe / d, mean, variance)) return 1.0;
   float s = 1.0 / d;
   if (s >= mean) return 1.0;
   float excess = mean - s;
@@ -192,35 +213,57 @@ int pbBlendSh(vec3 x, vec3 n, out vec3 c[9]) {
       seen[corner] = min(pbProbeVisibility(probe[corner], probePos[corner], biased),
                          pbProbeVisibility(probe[corner], probePos[corner], x));
   }
-  // Connectivity: b[8i + j] the bottleneck, over paths of cell edges from corner i to corner j,
-  // of the edges' visibility (the smaller of each end's visibility of the other). A probe's
-  // support is sum_j seen_j b[8i + j] over the corners weighing in; each probe counts at most
-  // (support / the largest support)^8.
+  // Connectivity (probe_sampler.h): each edge as open as its probes see each other, b[8i + j] the
+  // bottleneck over paths of edges from corner i to j; claim[i] whether x lies on probe i's side
+  // of what blocks its edges (x's distance along each edge against the first surface the probe
+  // saw that way, within 1% of the edge's length); a probe's support the claims (where no probe
+  // claims x, the visibilities) of the probes weighing in as far as they are connected to it;
+  // each probe counts at most (support / the largest support)^8.
   float connected[8];
   for (int i = 0; i < 8; i++) connected[i] = 1.0;
   if (pbHasVisibility) {
-    float b[64];
+    float b[64], edge[24], claim[8];
     for (int i = 0; i < 64; i++) b[i] = i / 8 == i % 8 ? 1.0 : 0.0;
     for (int i = 0; i < 8; i++) {
       for (int a = 0; a < 3; a++) {
-        int j = i | (1 << a);
-        if (j == i || !usable[i] || !usable[j]) continue;
-        float e = min(pbProbeVisibility(probe[i], probePos[i], probePos[j]),
-                      pbProbeVisibility(probe[j], probePos[j], probePos[i]));
-        b[8 * i + j] = e;
-        b[8 * j + i] = e;
+        int j = i ^ (1 << a);
+        edge[3 * i + a] = 0.0;
+        if (!usable[i] || !usable[j]) continue;
+        edge[3 * i + a] = min(pbProbeVisibility(probe[i], probePos[i], probePos[j]),
+                              pbProbeVisibility(probe[j], probePos[j], probePos[i]));
+        b[8 * i + j] = edge[3 * i + a];
       }
     }
     for (int m = 0; m < 8; m++)
       for (int i = 0; i < 8; i++)
         for (int j = 0; j < 8; j++) b[8 * i + j] = max(b[8 * i + j], min(b[8 * i + m], b[8 * m + j]));
+    for (int i = 0; i < 8; i++) {
+      claim[i] = 1.0;
+      if (!usable[i]) continue;
+      for (int a = 0; a < 3; a++) {
+        int j = i ^ (1 << a);
+        if (!usable[j]) continue;
+        vec3 along = probePos[j] - probePos[i];
+        float len = length(along);
+        float mean, variance;
+        if (!(len > 0.0) || !pbVisibilityMoments(probe[i], along / len, mean, variance) ||
+            !(mean > 0.0))
+          continue;
+        float beyond = dot(x - probePos[i], along) / len - 1.0 / mean;
+        float step = clamp(0.5 - beyond / (0.01 * len), 0.0, 1.0);
+        claim[i] *= 1.0 - (1.0 - edge[3 * i + a]) * (1.0 - step);
+      }
+    }
     float support[8];
     float most = 0.0;
-    for (int i = 0; i < 8; i++) {
-      support[i] = 0.0;
-      for (int j = 0; j < 8; j++)
-        if (usable[j] && tri[j] > 0.0) support[i] += seen[j] * b[8 * i + j];
-      if (usable[i] && tri[i] > 0.0) most = max(most, support[i]);
+    for (int pass = 0; pass < 2; pass++) {
+      for (int i = 0; i < 8; i++) {
+        support[i] = 0.0;
+        for (int j = 0; j < 8; j++)
+          if (usable[j] && tri[j] > 0.0) support[i] += (pass == 1 ? seen[j] : claim[j]) * b[8 * i + j];
+        if (usable[i] && tri[i] > 0.0) most = max(most, support[i]);
+      }
+      if (most > 0.0) break;
     }
     if (most > 0.0) {
       for (int i = 0; i < 8; i++) {

@@ -98,34 +98,51 @@ int2 pbWrappedTexel(int2 t) {
   return t;
 }
 
-float pbProbeVisibility(int3 probe, float3 probePos, float3 x) {
-  float3 fromProbe = x - probePos;
-  float d = length(fromProbe);
-  if (!(d > 0.0)) return 1.0;
-  float3 w = fromProbe / d;
+bool pbVisibilityMoments(int3 probe, float3 w, out float mean, out float variance) {
   float2 f = (pbOctahedralEncode(w) + 1.0) * 0.5 * float(pbVisSize) - 0.5;
   int2 ij = int2(floor(f));
   float2 ab = f - float2(ij);
-  float mean = 0.0, variance = 0.0;
-  float q[4], tap[4];
+  bool wrapped = ij.x < 0 || ij.y < 0 || ij.x + 1 >= pbVisSize || ij.y + 1 >= pbVisSize;
+  float q[4], tap[4], weight[4], scale[4];
+  float4 m[4];
+  float total = 0.0;
   [unroll] for (int k = 0; k < 4; k++) {
     int2 o = int2(k & 1, k >> 1);
     int2 t = pbWrappedTexel(ij + o);
     float3 centre = pbOctahedralDecode((float2(t) + 0.5) / float(pbVisSize) * 2.0 - 1.0);
-    float scale = 1.0 / (abs(centre.x) + abs(centre.y) + abs(centre.z));
-    float4 m = pbvisibility.Load(int4(pbVisSize * probe.xy + t, probe.z, 0));
+    scale[k] = wrapped ? 1.0 : 1.0 / (abs(centre.x) + abs(centre.y) + abs(centre.z));
+    m[k] = pbvisibility.Load(int4(pbVisSize * probe.xy + t, probe.z, 0));
     tap[k] = (o.x == 1 ? ab.x : 1.0 - ab.x) * (o.y == 1 ? ab.y : 1.0 - ab.y);
-    q[k] = scale * m.x;
-    mean += tap[k] * q[k];
-    variance += tap[k] * scale * scale * max(m.y - m.x * m.x, 0.0);
+    weight[k] = m[k].z > 0.0 ? tap[k] : 0.0;
+    total += weight[k];
   }
+  mean = 0.0;
+  variance = 0.0;
+  if (!(total > 0.0)) return false;
+  [unroll] for (int k2 = 0; k2 < 4; k2++) {
+    q[k2] = scale[k2] * m[k2].x;
+    weight[k2] /= total;
+    mean += weight[k2] * q[k2];
+    variance += weight[k2] * scale[k2] * scale[k2] * max(m[k2].y - m[k2].x * m[k2].x, 0.0);
+  }
+  [unroll] for (int k3 = 0; k3 < 4; k3++)
+    if (weight[k3] == 0.0) q[k3] = mean;
   float wu = tap[1] + tap[3], wv = tap[2] + tap[3];
   float gu = (q[1] - q[0]) * (1.0 - wv) + (q[3] - q[2]) * wv;
   float gv = (q[2] - q[0]) * (1.0 - wu) + (q[3] - q[1]) * wu;
   variance = max(variance - (gu * gu + gv * gv) / 12.0, pbMinRelativeVariance * mean * mean);
-  float l1 = abs(w.x) + abs(w.y) + abs(w.z);
+  float l1 = wrapped ? 1.0 : abs(w.x) + abs(w.y) + abs(w.z);
   mean *= l1;
   variance *= l1 * l1;
+  return true;
+}
+
+float pbProbeVisibility(int3 probe, float3 probePos, float3 x) {
+  float3 fromProbe = x - probePos;
+  float d = length(fromProbe);
+  if (!(d > 0.0)) return 1.0;
+  float mean, variance;
+  if (!pbVisibilityMoments(probe, fromProbe / d, mean, variance)) return 1.0;
   float s = 1.0 / d;
   if (s >= mean) return 1.0;
   float excess = mean - s;
@@ -160,29 +177,50 @@ int pbBlendSh(float3 x, float3 n, out float3 c[9]) {
   float connected[8];
   [unroll] for (int i1 = 0; i1 < 8; i1++) connected[i1] = 1.0;
   if (pbHasVisibility) {
-    float b[64];
+    float b[64], edge[24], claim[8];
     [unroll] for (int i2 = 0; i2 < 64; i2++) b[i2] = i2 / 8 == i2 % 8 ? 1.0 : 0.0;
     [unroll] for (int i3 = 0; i3 < 8; i3++) {
       [unroll] for (int a = 0; a < 3; a++) {
-        int j = i3 | (1 << a);
-        if (j == i3 || !usable[i3] || !usable[j]) continue;
-        float e = min(pbProbeVisibility(probe[i3], probePos[i3], probePos[j]),
-                      pbProbeVisibility(probe[j], probePos[j], probePos[i3]));
-        b[8 * i3 + j] = e;
-        b[8 * j + i3] = e;
+        int j = i3 ^ (1 << a);
+        edge[3 * i3 + a] = 0.0;
+        if (!usable[i3] || !usable[j]) continue;
+        edge[3 * i3 + a] = min(pbProbeVisibility(probe[i3], probePos[i3], probePos[j]),
+                               pbProbeVisibility(probe[j], probePos[j], probePos[i3]));
+        b[8 * i3 + j] = edge[3 * i3 + a];
       }
     }
     [loop] for (int m = 0; m < 8; m++)
       [loop] for (int i4 = 0; i4 < 8; i4++)
         [unroll] for (int j4 = 0; j4 < 8; j4++)
           b[8 * i4 + j4] = max(b[8 * i4 + j4], min(b[8 * i4 + m], b[8 * m + j4]));
+    [unroll] for (int i7 = 0; i7 < 8; i7++) {
+      claim[i7] = 1.0;
+      if (!usable[i7]) continue;
+      [unroll] for (int a7 = 0; a7 < 3; a7++) {
+        int j7 = i7 ^ (1 << a7);
+        if (!usable[j7]) continue;
+        float3 along = probePos[j7] - probePos[i7];
+        float len = length(along);
+        float mean, variance;
+        if (!(len > 0.0) || !pbVisibilityMoments(probe[i7], along / len, mean, variance) ||
+            !(mean > 0.0))
+          continue;
+        float beyond = dot(x - probePos[i7], along) / len - 1.0 / mean;
+        float step = clamp(0.5 - beyond / (0.01 * len), 0.0, 1.0);
+        claim[i7] *= 1.0 - (1.0 - edge[3 * i7 + a7]) * (1.0 - step);
+      }
+    }
     float support[8];
     float most = 0.0;
-    [unroll] for (int i5 = 0; i5 < 8; i5++) {
-      support[i5] = 0.0;
-      [unroll] for (int j5 = 0; j5 < 8; j5++)
-        if (usable[j5] && tri[j5] > 0.0) support[i5] += seen[j5] * b[8 * i5 + j5];
-      if (usable[i5] && tri[i5] > 0.0) most = max(most, support[i5]);
+    [loop] for (int pass = 0; pass < 2; pass++) {
+      [unroll] for (int i5 = 0; i5 < 8; i5++) {
+        support[i5] = 0.0;
+        [unroll] for (int j5 = 0; j5 < 8; j5++)
+          if (usable[j5] && tri[j5] > 0.0)
+            support[i5] += (pass == 1 ? seen[j5] : claim[j5]) * b[8 * i5 + j5];
+        if (usable[i5] && tri[i5] > 0.0) most = max(most, support[i5]);
+      }
+      if (most > 0.0) break;
     }
     if (most > 0.0) {
       [unroll] for (int i6 = 0; i6 < 8; i6++) {

@@ -217,7 +217,8 @@ std::vector<Query> ConnectivityQueries(const ProbeTextures& packed, size_t limit
       for (int iy = 0; iy <= 38; ++iy)
         for (int iz = 1; iz <= 39; ++iz)
           for (const Vec3d& n : normals) {
-            const Query q{ToFloats({x, -0.95 + 0.05 * iy, 0.05 * iz}), ToFloats(n)};
+            // 3 mm off the grid's planes, where float and double could pick different cells.
+            const Query q{ToFloats({x, -0.947 + 0.05 * iy, 0.003 + 0.05 * iz}), ToFloats(n)};
             const Vec3d a = with.Sample(q.position, q.normal).irradiance;
             const Vec3d b = without.Sample(q.position, q.normal).irradiance;
             if (MaxComponent(Abs(a - b)) > 0.1 * CellMagnitude(volume, q)) found.push_back(q);
@@ -239,11 +240,12 @@ std::vector<Query> ConnectivityQueries(const ProbeTextures& packed, size_t limit
 //   by up to 64 / 6e-3 = 1.1e4; it passes into p = var / (var + excess^2) at most 1:1, is tripled
 //   by the cube and tripled again by the crush: 9 x 2u x 1.1e4 = 1.1e-2 relative in a weight,
 //   2.2e-2 in the blend. The connectivity (probe_sampler.h) raises the ratio of two probes'
-//   supports (sums of such visibilities) to the 8th power, so where it binds a weight carries up
-//   to 16 times their relative error; that is not covered by the bound, which is kept: measured
-//   with the 256 points where the connectivity matters, the worst difference is 5.3e-4, the same
-//   as on the other points (the edges are read head-on along grid axes, where a texel's s are
-//   alike and the variance's cancellation is mild).
+//   supports (sums of claims, each a product of ramps in the edges' visibilities and the wall's
+//   distance along them) to the 8th power, so where it binds a weight carries up to 16 times
+//   their relative error; that is not covered by the bound, which is kept: measured with the
+//   points where the connectivity matters, the worst difference is 5.4e-4 and 1.7e-6 in the two
+//   leak scenes (the edges are read head-on along grid axes, where a texel's s are alike and the
+//   variance's cancellation is mild).
 constexpr double kTolerance = 1e-4;
 constexpr double kVisibilityTolerance = 2.2e-2;
 
@@ -520,12 +522,19 @@ class ShaderInclude : public ::testing::Test {
     BakeJob leak = TwoRoomsWithThinWall(-1.98);
     leak.settings.samplesPerProbe = 256;
     leak_ = Pack(BakeOrDie(leak));
+    // Layers 6 cm behind the wall and 40 cm before it at 128 samples (two rays a texel, some
+    // texels empty): points between the wall and the near layer, which Chebyshev alone leaves to
+    // the probes beyond the wall, are decided by the cell's connectivity.
+    BakeJob near = TwoRoomsWithThinWall(-1.9);
+    near.settings.samplesPerProbe = 128;
+    near_ = Pack(BakeOrDie(near));
     open_ = Pack(BakeOrDie(OpenSceneWithSkyTransfer()));
   }
   static void TearDownTestSuite() {
     delete leak_;
+    delete near_;
     delete open_;
-    leak_ = open_ = nullptr;
+    leak_ = near_ = open_ = nullptr;
   }
   static ProbeTextures* Pack(const ProbeVolume& volume) {
     absl::StatusOr<ProbeTextures> textures = PackProbeTextures(volume, "x.bin");
@@ -538,7 +547,7 @@ class ShaderInclude : public ::testing::Test {
   // visibility on and off.
   void ExpectMatchesTheCore(const std::string& language, const std::string& fragment,
                             const ProbeTextures* packed, const std::vector<Query>& queries,
-                            const std::vector<Vec3d>& sky) {
+                            const std::vector<Vec3d>& sky, bool offsets = true) {
     ASSERT_TRUE(HaveProgram("chromium"))
         << "chromium is missing: run scripts/install-deps.sh (Debian's chromium package)";
     ASSERT_NE(packed, nullptr);
@@ -550,7 +559,9 @@ class ShaderInclude : public ::testing::Test {
     for (size_t p = 0; p < decoded.filled.size(); ++p)
       moved += decoded.offset[3 * p] != 0 || decoded.offset[3 * p + 1] != 0 ||
                decoded.offset[3 * p + 2] != 0;
-    EXPECT_GT(moved, 0) << "the scene must move probes for the offsets to be tested";
+    if (offsets) {
+      EXPECT_GT(moved, 0) << "the scene must move probes for the offsets to be tested";
+    }
     ASSERT_EQ(decoded.skyTransferOrder > 0, !sky.empty());
 
     // What the shader blends, and the size of its terms: |local| + sum |T| |sky| per coefficient.
@@ -583,7 +594,9 @@ class ShaderInclude : public ::testing::Test {
       for (size_t i = 0; i < n; ++i) {
         const ProbeSample want = sampler.Sample(queries[i].position, queries[i].normal);
         const size_t at = 4 * (size_t(row) * n + i);
-        EXPECT_EQ(values.values(int(at + 3)).number_value(), want.probes) << "query " << i;
+        EXPECT_EQ(values.values(int(at + 3)).number_value(), want.probes)
+            << "query " << i << " at (" << queries[i].position.x << ", " << queries[i].position.y
+            << ", " << queries[i].position.z << ")";
         const double magnitude = CellMagnitude(magnitudes, queries[i]);
         for (int ch = 0; ch < 3; ++ch) {
           const double got = values.values(int(at) + ch).number_value();
@@ -603,10 +616,12 @@ class ShaderInclude : public ::testing::Test {
   }
 
   static ProbeTextures* leak_;
+  static ProbeTextures* near_;
   static ProbeTextures* open_;
   TempDir dir_;
 };
 ProbeTextures* ShaderInclude::leak_ = nullptr;
+ProbeTextures* ShaderInclude::near_ = nullptr;
 ProbeTextures* ShaderInclude::open_ = nullptr;
 
 bool HaveHlslTools() {
@@ -615,13 +630,13 @@ bool HaveHlslTools() {
 constexpr char kNoHlslTools[] =
     "glslang-tools or spirv-cross is missing: run scripts/install-deps.sh";
 
-// The leak queries and 256 points where the connectivity matters (the test asserts there are
-// that many, so that it compares the include's connectivity with the core's).
+// The leak queries and up to 256 points where the connectivity matters (the test asserts there
+// are at least 128, so that it compares the include's connectivity with the core's).
 std::vector<Query> LeakAndConnectivityQueries(const ProbeTextures* packed) {
   std::vector<Query> queries = LeakQueries();
   if (packed == nullptr) return queries;
   const std::vector<Query> cut = ConnectivityQueries(*packed, 256);
-  EXPECT_EQ(cut.size(), 256u) << "too few points where the connectivity matters";
+  EXPECT_GE(cut.size(), 128u) << "too few points where the connectivity matters";
   queries.insert(queries.end(), cut.begin(), cut.end());
   return queries;
 }
@@ -630,9 +645,20 @@ TEST_F(ShaderInclude, GlslMatchesTheCoreSamplerOnTheLeakScene) {
   ExpectMatchesTheCore("GLSL", GlslFragment(), leak_, LeakAndConnectivityQueries(leak_), {});
 }
 
+TEST_F(ShaderInclude, GlslMatchesTheCoreSamplerBesideAThinWall) {
+  ExpectMatchesTheCore("GLSL", GlslFragment(), near_, LeakAndConnectivityQueries(near_), {},
+                       /*offsets=*/false);
+}
+
 TEST_F(ShaderInclude, HlslMatchesTheCoreSamplerOnTheLeakScene) {
   ASSERT_TRUE(HaveHlslTools()) << kNoHlslTools;
   ExpectMatchesTheCore("HLSL", HlslFragment(dir_), leak_, LeakAndConnectivityQueries(leak_), {});
+}
+
+TEST_F(ShaderInclude, HlslMatchesTheCoreSamplerBesideAThinWall) {
+  ASSERT_TRUE(HaveHlslTools()) << kNoHlslTools;
+  ExpectMatchesTheCore("HLSL", HlslFragment(dir_), near_, LeakAndConnectivityQueries(near_), {},
+                       /*offsets=*/false);
 }
 
 TEST_F(ShaderInclude, GlslRelightsAsTheCoreDoes) {

@@ -646,6 +646,13 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
       "order {}, {} samples/probe",
       Seconds(start), job.scene.meshes.size(), scene.lights->Count(),
       scene.lights->TreeLightCount(), probeCount, settings.shOrder, settings.samplesPerProbe);
+  if (settings.visibility && settings.samplesPerProbe < kMinVisibilitySamples) {
+    log->warn(
+        "visibility: {} samples per probe leave {:.1f} rays per texel of the {} x {} map; below "
+        "{} samples texels go empty and thin walls leak (README, \"Light leaks\")",
+        settings.samplesPerProbe, double(settings.samplesPerProbe) / kVisibilityTexels,
+        kVisibilityMapSize, kVisibilityMapSize, kMinVisibilitySamples);
+  }
 
   const ProbeFinisher finisher(settings);
   ProbeVolume volume = NewVolume(job, options, finisher);

@@ -31,30 +31,63 @@ struct Corner {
   double trilinear = 0, seen = 1;
 };
 
-// The cell's connectivity (probe_sampler.h): b[i][j] the bottleneck, over paths of cell edges
-// from corner i to corner j, of the edges' visibility (the smaller of each end's visibility of
-// the other); a corner's support sum_j seen_j b[i][j] over the corners weighing in; connected[i]
-// = (support_i / the largest support)^8, left at 1 where no corner weighs in.
-void Connectivity(const ProbeVolume& volume, const Corner (&corners)[8], double (&connected)[8]) {
-  double b[8][8] = {};
+// The cell's connectivity at x (probe_sampler.h): connected[i] in [0, 1] for each corner, left
+// at 1 where no corner weighs in.
+void Connectivity(const ProbeVolume& volume, const Vec3d& x, const Corner (&corners)[8],
+                  double (&connected)[8]) {
+  // Each edge as open as its two probes see each other; b[i][j] the bottleneck over paths of
+  // edges from corner i to corner j.
+  double edge[8][3] = {}, b[8][8] = {};
   for (int i = 0; i < 8; ++i) {
     b[i][i] = 1;
     for (int a = 0; a < 3; ++a) {
-      const int j = i | (1 << a);
-      if (j == i || !corners[i].usable || !corners[j].usable) continue;
-      b[i][j] = b[j][i] = std::min(
+      const int j = i ^ (1 << a);
+      if (!corners[i].usable || !corners[j].usable) continue;
+      edge[i][a] = std::min(
           ProbeVisibility(volume, corners[i].probe, corners[i].position, corners[j].position),
           ProbeVisibility(volume, corners[j].probe, corners[j].position, corners[i].position));
+      b[i][j] = edge[i][a];
     }
   }
   for (int m = 0; m < 8; ++m)
     for (int i = 0; i < 8; ++i)
       for (int j = 0; j < 8; ++j) b[i][j] = std::max(b[i][j], std::min(b[i][m], b[m][j]));
-  double support[8] = {}, most = 0;
+  // claim[i]: whether x lies on probe i's side of what blocks its edges. Along each edge, x's
+  // distance from the probe is compared with the first surface the probe saw that way (head-on,
+  // where its moments are sharp): nearer claims x, beyond does not, within kRamp of the edge's
+  // length in between; an open edge does not count, a blocked one in full.
+  constexpr double kRamp = 0.01;
+  double claim[8];
   for (int i = 0; i < 8; ++i) {
-    for (int j = 0; j < 8; ++j)
-      if (corners[j].usable && corners[j].trilinear > 0) support[i] += corners[j].seen * b[i][j];
-    if (corners[i].usable && corners[i].trilinear > 0) most = std::max(most, support[i]);
+    claim[i] = 1;
+    if (!corners[i].usable) continue;
+    for (int a = 0; a < 3; ++a) {
+      const int j = i ^ (1 << a);
+      if (!corners[j].usable) continue;
+      const Vec3d along = corners[j].position - corners[i].position;
+      const double length = Length(along);
+      double mean, variance;
+      if (!(length > 0) ||
+          !VisibilityMoments(volume, corners[i].probe, along / length, &mean, &variance) ||
+          !(mean > 0))
+        continue;
+      const double beyond = Dot(x - corners[i].position, along) / length - 1 / mean;
+      const double step = std::clamp(0.5 - beyond / (kRamp * length), 0.0, 1.0);
+      claim[i] *= 1 - (1 - edge[i][a]) * (1 - step);
+    }
+  }
+  // A probe's support: the claims of the probes weighing in, as far as they are connected to it;
+  // where no probe claims x (x inside what blocks the edges), how well they see it instead.
+  double support[8] = {}, most = 0;
+  for (const bool bySight : {false, true}) {
+    for (int i = 0; i < 8; ++i) {
+      support[i] = 0;
+      for (int j = 0; j < 8; ++j)
+        if (corners[j].usable && corners[j].trilinear > 0)
+          support[i] += (bySight ? corners[j].seen : claim[j]) * b[i][j];
+      if (corners[i].usable && corners[i].trilinear > 0) most = std::max(most, support[i]);
+    }
+    if (most > 0) break;
   }
   if (!(most > 0)) return;
   for (int i = 0; i < 8; ++i) {
@@ -119,7 +152,7 @@ ProbeSample ProbeSampler::Sample(const Vec3d& position, const Vec3d& normal) con
                              ProbeVisibility(volume_, p, corner.position, position));
   }
   double connected[8] = {1, 1, 1, 1, 1, 1, 1, 1};
-  if (visibility && options_.connectivity) Connectivity(volume_, corners, connected);
+  if (visibility && options_.connectivity) Connectivity(volume_, position, corners, connected);
 
   ProbeSample out;
   out.radianceSh.assign(size_t(coeffs), Vec3d{0, 0, 0});

@@ -21,14 +21,19 @@
 //     - connectivity: the cell's 12 edges each get the smaller of its two probes' visibility of
 //       the other, and b(i, j) is the bottleneck (the largest, over paths of edges from corner i
 //       to corner j, of the smallest edge on the path), so the probes on one side of a wall
-//       through the cell are connected and the two sides cut apart. A probe's support is
-//       sum_j seen_j b(i, j) over the probes weighing in, how well the probes on its side see x;
-//       the probe counts at most (support / the largest support)^8: a side whose probes see x
-//       half as well as the other's weighs under 0.4%, sides that see x alike both count;
-//     the probe's visibility is min(seen, connectivity). Then weights below 0.2 are crushed, w ->
-//     w^3 / 0.2^2, after a floor of 1e-30 so that a point hidden from all 8
-//       probes still gets their blend. The cell is chosen at x, not xb, for the same reason as
-//       the second visibility point;
+//       through the cell are connected and the two sides cut apart. A probe claims x unless,
+//       along one of its blocked edges, x lies beyond the first surface the probe saw that way
+//       (1 / its mean s toward the neighbour: the wall seen head-on, where the moments are
+//       sharp; a ramp of 1% of the edge's length; an edge counts as far as it is blocked). A
+//       probe's support is sum_j claim_j b(i, j) over the probes weighing in or, where none
+//       claims x (x inside what blocks the edges), sum_j seen_j b(i, j); the probe counts at
+//       most (support / the largest support)^8. So the side of a wall x lies on is read where
+//       the wall crosses the cell's edges, not from a grazing view of x through the wall, which
+//       Chebyshev's bound cannot resolve;
+//     - the probe's visibility is min(seen, connectivity). Then weights below 0.2 are crushed,
+//       w -> w^3 / 0.2^2, after a floor of 1e-30 so that a point hidden from all 8 probes still
+//       gets their blend. The cell is chosen at x, not xb, for the same reason as the second
+//       visibility point;
 //   - the blend is normalised by the weights' sum.
 // Irradiance is E(n) = sum_i E_i Y_i(n), E_i the blended irradiance SH when the volume has them,
 // else the blended radiance SH times the clamped cosine's band factors; the blended radiance SH

@@ -19,6 +19,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "probebake/bake/probe_volume.h"
 #include "probebake/math/vec3.h"
@@ -28,6 +29,9 @@ namespace probebake {
 
 inline constexpr int kVisibilityMapSize = 8;
 inline constexpr int kVisibilityTexels = kVisibilityMapSize * kVisibilityMapSize;
+// The fewest samples per probe whose moments the leak tests hold to (4 rays a texel on average):
+// below, a bake with visibility warns (tests/volume/probe_sampler_test.cpp, Leak.*).
+inline constexpr int64_t kMinVisibilitySamples = 4 * kVisibilityTexels;
 
 // The octahedral coordinates of unit direction w, in [-1, 1]^2.
 inline void OctahedralEncode(const Vec3d& w, double* u, double* v) {
@@ -92,6 +96,7 @@ inline Vec3d VisibilityTexelCentre(int t) {
 struct VisibilityTaps {
   int texel[4];
   double weight[4];
+  bool wrapped = false;  // a tap lies across the map's border (the direction is near its seam)
 };
 inline VisibilityTaps VisibilityBilinear(const Vec3d& w) {
   double u, v;
@@ -104,6 +109,8 @@ inline VisibilityTaps VisibilityBilinear(const Vec3d& w) {
   for (int k = 0; k < 4; ++k) {
     const int di = k & 1, dj = k >> 1;
     taps.texel[k] = WrappedTexel(i + di, j + dj);
+    taps.wrapped = taps.wrapped || i + di < 0 || i + di >= kVisibilityMapSize || j + dj < 0 ||
+                   j + dj >= kVisibilityMapSize;
     taps.weight[k] = (di ? a : 1 - a) * (dj ? b : 1 - b);
   }
   return taps;
@@ -139,33 +146,36 @@ inline double VisibilityL1(const Vec3d& w) {
   return std::abs(w.x) + std::abs(w.y) + std::abs(w.z);
 }
 
-// The visibility, in [0, 1], of point x from probe `probe` of `volume` (which must have
-// visibility moments) baked at probePos (grid point + offset). With s = 1/|x - probePos|: the
-// moments of the four texels around the direction to x, bilinear between texel centres in the
-// octahedral map (each texel's s scaled by 1 / |centre|_1, which makes a plane's s linear in the
-// map's coordinates, and the blend scaled back by |direction|_1); the variance is the texels'
-// own, less what the trend between them explains, and at least kVisibilityMinRelativeVariance
-// times the mean^2. Then 1 when
-// s >= mean (x nearer than the surfaces seen that way), else Chebyshev's one-sided bound
-// p = var / (var + (mean - s)^2), cubed as DDGI does.
-inline double ProbeVisibility(const ProbeVolume& volume, int64_t probe, const Vec3d& probePos,
-                              const Vec3d& x) {
-  const Vec3d fromProbe = x - probePos;
-  const double d = Length(fromProbe);
-  if (!(d > 0)) return 1;
-  const Vec3d w = fromProbe / d;
-  // Each tap's moments of s = 1/t scaled to q = s / |c|_1 (c its centre direction): q is linear
-  // in the octahedral coordinates for a plane, so the bilinear blend stays on it, and s at w is
-  // the blend times |w|_1.
+// The mean and variance of s = 1/t that probe `probe` of `volume` saw around unit direction w:
+// the moments of the four texels around w, bilinear between texel centres in the octahedral map
+// (each texel's s scaled by 1 / |centre|_1, which makes a plane's s linear in the map's
+// coordinates, and the blend scaled back by |w|_1; raw s where a tap lies across the map's seam,
+// whose mirrored taps do not surround w in the map), texels no ray went through left out; the
+// variance is the texels' own, less what the trend between them explains, and at least
+// kVisibilityMinRelativeVariance times the mean^2. False when no ray went through any of them.
+inline bool VisibilityMoments(const ProbeVolume& volume, int64_t probe, const Vec3d& w,
+                              double* meanOut, double* varianceOut) {
   const VisibilityTaps taps = VisibilityBilinear(w);
+  double weight[4], total = 0;
+  for (int k = 0; k < 4; ++k) {
+    const bool seen = volume.visibility[size_t(taps.texel[k])][3 * size_t(probe) + 2] > 0;
+    weight[k] = seen ? taps.weight[k] : 0.0;
+    total += weight[k];
+  }
+  if (!(total > 0)) return false;
   double mean = 0, variance = 0, q[4];
   for (int k = 0; k < 4; ++k) {
     const float* m = &volume.visibility[size_t(taps.texel[k])][3 * size_t(probe)];
-    const double scale = 1 / VisibilityL1(VisibilityTexelCentre(taps.texel[k]));
+    const double scale =
+        taps.wrapped ? 1.0 : 1 / VisibilityL1(VisibilityTexelCentre(taps.texel[k]));
     q[k] = scale * m[0];
-    mean += taps.weight[k] * q[k];
-    variance += taps.weight[k] * scale * scale * std::max(double(m[1]) - double(m[0]) * m[0], 0.0);
+    weight[k] /= total;
+    mean += weight[k] * q[k];
+    variance += weight[k] * scale * scale * std::max(double(m[1]) - double(m[0]) * m[0], 0.0);
   }
+  // An empty texel takes the others' mean: no trend through it.
+  for (int k = 0; k < 4; ++k)
+    if (weight[k] == 0) q[k] = mean;
   // Less the part of the texels' spread that the trend between them explains (a linear ramp
   // across a texel has variance gradient^2 / 12 per axis): interpolated, it is no uncertainty.
   const double wu = taps.weight[1] + taps.weight[3], wv = taps.weight[2] + taps.weight[3];
@@ -173,9 +183,24 @@ inline double ProbeVisibility(const ProbeVolume& volume, int64_t probe, const Ve
   const double gv = (q[2] - q[0]) * (1 - wu) + (q[3] - q[1]) * wu;
   variance =
       std::max(variance - (gu * gu + gv * gv) / 12, kVisibilityMinRelativeVariance * mean * mean);
-  const double scale = VisibilityL1(w);
-  mean *= scale;
-  variance *= scale * scale;
+  const double scale = taps.wrapped ? 1.0 : VisibilityL1(w);
+  *meanOut = mean * scale;
+  *varianceOut = variance * scale * scale;
+  return true;
+}
+
+// The visibility, in [0, 1], of point x from probe `probe` of `volume` (which must have
+// visibility moments) baked at probePos (grid point + offset), with s = 1/|x - probePos| and
+// the moments around the direction to x (VisibilityMoments): 1 when s >= mean (x nearer than the
+// surfaces seen that way) or when no ray went that way, else Chebyshev's one-sided bound
+// p = var / (var + (mean - s)^2), cubed as DDGI does.
+inline double ProbeVisibility(const ProbeVolume& volume, int64_t probe, const Vec3d& probePos,
+                              const Vec3d& x) {
+  const Vec3d fromProbe = x - probePos;
+  const double d = Length(fromProbe);
+  if (!(d > 0)) return 1;
+  double mean, variance;
+  if (!VisibilityMoments(volume, probe, fromProbe / d, &mean, &variance)) return 1;
   const double s = 1 / d;
   if (s >= mean) return 1;  // nearer than the surfaces the probe sees that way
   const double excess = mean - s;
