@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "bake_test_util.h"
+#include "probebake/volume/visibility_map.h"
 
 namespace probebake {
 namespace {
@@ -329,6 +330,31 @@ TEST(Adaptive, StopsWhenTheTargetIsMetAndNotBefore) {
     }
   }
   EXPECT_GT(early, 0) << "no probe met a 2% target within 65536 samples";
+}
+
+// With visibility, an adaptive probe samples at least kMinVisibilitySamples (4 rays a texel of
+// its moments) even where its error target is met sooner: at a loose 20% target, 512 samples in
+// 64 batches, every probe would stop after its first two rounds (80 samples) without the floor.
+TEST(Adaptive, WithVisibilityAProbeSamplesEnoughForItsMoments) {
+  BakeJob job = DemoLikeScene();
+  job.settings.samplesPerProbe = 512;
+  job.settings.batches = 64;
+  job.settings.targetRelError = 0.2;
+  job.settings.visibility = true;
+  const ProbeVolume v = BakeOrDie(job, 2);
+  job.settings.visibility = false;
+  const ProbeVolume without = BakeOrDie(job, 2);
+  int64_t early = 0, earlyWithout = 0;
+  for (int64_t p = 0; p < job.grid.ProbeCount(); ++p) {
+    if (!v.active[p]) continue;
+    EXPECT_GE(v.sampleCount[p], float(kMinVisibilitySamples)) << "probe " << p;
+    early += v.sampleCount[p] < job.settings.samplesPerProbe;
+    earlyWithout += without.sampleCount[p] < float(kMinVisibilitySamples);
+  }
+  // The floor is what holds them: without visibility probes stop sooner.
+  EXPECT_GT(earlyWithout, 0)
+      << "no probe met the target before 256 samples: the test tests nothing";
+  EXPECT_GT(early, 0) << "no probe stopped before the cap";
 }
 
 // A closed room (albedo 0.7) lit only through a 10 cm hole in its ceiling by a bright sky, at the

@@ -439,7 +439,8 @@ class ProbeBaker {
             ProbeIntegrator::kSamplesPerCall / (settings_.samplesPerProbe / maxBatches_), 1,
             ProbeIntegrator::kSamplesPerCall))),
         sampledMayBeNonZero_(SampledMayBeNonZero(job.scene, lights_)),
-        visibilityMaxDistance_(VisibilityMaxDistance(job.grid)) {}
+        visibilityMaxDistance_(VisibilityMaxDistance(job.grid)),
+        minBatches_(MinBatches(settings_, maxBatches_)) {}
 
   // Bakes the probe at start.p into probe `probe` of *volume, unless `cancel` or `stop` is raised
   // before it is done.
@@ -494,7 +495,7 @@ class ProbeBaker {
       if (adaptive) {
         const bool met = AdaptiveErrorBound(estimate->Relative(next).irradiance, next) <=
                          settings_.targetRelError;
-        if (met && metBefore) break;
+        if (met && metBefore && next >= minBatches_) break;
         metBefore = met;
       }
     }
@@ -537,9 +538,21 @@ class ProbeBaker {
   const std::atomic<bool>* cancel_;
   const std::atomic<bool>* stop_;
   const int maxBatches_;
+  // With visibility, adaptive sampling stops no sooner than this many batches: enough samples
+  // (kMinVisibilitySamples, or all of them) that the moments' texels hold a few rays each.
+  static int MinBatches(const BakeSettings& settings, int maxBatches) {
+    if (!settings.visibility || !(settings.targetRelError > 0)) return 0;
+    const int64_t want = std::min(settings.samplesPerProbe, kMinVisibilitySamples);
+    int64_t samples = 0;
+    int n = 0;
+    while (n < maxBatches && samples < want)
+      samples += BatchSize(settings.samplesPerProbe, maxBatches, n++);
+    return n;
+  }
   const int batchesPerCall_;
   const bool sampledMayBeNonZero_;
   const double visibilityMaxDistance_;
+  const int minBatches_;
 };
 
 // How BakeProbes ended: every probe baked, cancelled, or stopped by a probe whose values overflow
