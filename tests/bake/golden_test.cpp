@@ -217,6 +217,14 @@ std::vector<GoldenCase> Cases() {
          s->set_relocation_max_offset(0.4);
          s->set_visibility(true);
        })},
+      // Adaptive sampling with visibility (baker 19: no probe stops before 256 samples, so that
+      // its moments hold a few rays a texel; at a 20% target probes stopped at 80).
+      {"demo_adaptive_visibility", demoWith([](Settings* s) {
+         s->set_samples_per_probe(512);
+         s->set_batches(64);
+         s->set_target_rel_error(0.2);
+         s->set_visibility(true);
+       })},
       // Sky transfer: the demo's sky into T, its lamp into the radiance.
       {"demo_sky_transfer", demoWith([](Settings* s) {
          s->set_samples_per_probe(128);
