@@ -75,12 +75,30 @@ constexpr float kBoxCorners[8][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0},
 constexpr uint16_t kBoxTriangles[36] = {0, 2, 3, 0, 3, 1, 4, 5, 7, 4, 7, 6, 0, 1, 5, 0, 5, 4,
                                         2, 6, 7, 2, 7, 3, 0, 4, 6, 0, 6, 2, 1, 3, 7, 1, 7, 5};
 
-std::string LevelGltf() {
+// The glTF members both levels read their meshes from: the unit box (accessors 0 and 1) and a
+// quad facing +z (2 and 3), in one buffer as a data URI.
+std::string BoxAndQuadBuffers() {
   std::string bin;
   for (const auto& c : kBoxCorners) Append<float>(&bin, {c[0], c[1], c[2]});
   for (uint16_t i : kBoxTriangles) Append<uint16_t>(&bin, {i});
-  Append<float>(&bin, {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0});  // the quad, facing +z
+  Append<float>(&bin, {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0});
   Append<uint16_t>(&bin, {0, 1, 2, 0, 2, 3});
+  return R"("accessors": [
+      {"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
+       "min": [0, 0, 0], "max": [1, 1, 1]},
+      {"bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR"},
+      {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC3",
+       "min": [0, 0, 0], "max": [1, 1, 0]},
+      {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 96},
+                    {"buffer": 0, "byteOffset": 96, "byteLength": 72},
+                    {"buffer": 0, "byteOffset": 168, "byteLength": 48},
+                    {"buffer": 0, "byteOffset": 216, "byteLength": 12}],
+    "buffers": [{"byteLength": 228, "uri": "data:application/octet-stream;base64,)" +
+         absl::Base64Escape(bin) + R"("}])";
+}
+
+std::string LevelGltf() {
   std::string nodes, roots;
   for (size_t n = 0; n < Nodes().size(); ++n) {
     absl::StrAppend(&nodes, n ? "," : "", "{\"mesh\": ", Nodes()[n].mesh,
@@ -97,19 +115,8 @@ std::string LevelGltf() {
                   {"name": "lamp", "emissiveFactor": [1, 0.9, 0.8],
                    "pbrMetallicRoughness": {"baseColorFactor": [0, 0, 0, 1],
                                             "metallicFactor": 0}}],
-    "accessors": [
-      {"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
-       "min": [0, 0, 0], "max": [1, 1, 1]},
-      {"bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR"},
-      {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC3",
-       "min": [0, 0, 0], "max": [1, 1, 0]},
-      {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}],
-    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 96},
-                    {"buffer": 0, "byteOffset": 96, "byteLength": 72},
-                    {"buffer": 0, "byteOffset": 168, "byteLength": 48},
-                    {"buffer": 0, "byteOffset": 216, "byteLength": 12}],
-    "buffers": [{"byteLength": 228, "uri": "data:application/octet-stream;base64,)" +
-         absl::Base64Escape(bin) + R"("}]})";
+    )" + BoxAndQuadBuffers() +
+         "}";
 }
 
 // The job's own transform of the level: +Y up to +Z up, and a shift.
@@ -233,11 +240,6 @@ TEST(Instancing, FilesPlacingFewTrianglesAreFlattened) {
 // A glTF placing the unit box (12 triangles) under `boxes` nodes and a quad (2) under `quads`,
 // in a job of its own.
 std::string RepeatedJob(const TempDir& dir, int boxes, int quads) {
-  std::string bin;
-  for (const auto& c : kBoxCorners) Append<float>(&bin, {c[0], c[1], c[2]});
-  for (uint16_t i : kBoxTriangles) Append<uint16_t>(&bin, {i});
-  Append<float>(&bin, {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0});
-  Append<uint16_t>(&bin, {0, 1, 2, 0, 2, 3});
   std::string nodes, roots;
   for (int n = 0; n < boxes + quads; ++n) {
     absl::StrAppend(&nodes, n ? "," : "", "{\"mesh\": ", n < boxes ? 0 : 1, ", \"translation\": [",
@@ -249,19 +251,7 @@ std::string RepeatedJob(const TempDir& dir, int boxes, int quads) {
                                  R"(]}], "nodes": [)" + nodes + R"(],
     "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]},
                {"primitives": [{"attributes": {"POSITION": 2}, "indices": 3}]}],
-    "accessors": [
-      {"bufferView": 0, "componentType": 5126, "count": 8, "type": "VEC3",
-       "min": [0, 0, 0], "max": [1, 1, 1]},
-      {"bufferView": 1, "componentType": 5123, "count": 36, "type": "SCALAR"},
-      {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC3",
-       "min": [0, 0, 0], "max": [1, 1, 0]},
-      {"bufferView": 3, "componentType": 5123, "count": 6, "type": "SCALAR"}],
-    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 96},
-                    {"buffer": 0, "byteOffset": 96, "byteLength": 72},
-                    {"buffer": 0, "byteOffset": 168, "byteLength": 48},
-                    {"buffer": 0, "byteOffset": 216, "byteLength": 12}],
-    "buffers": [{"byteLength": 228, "uri": "data:application/octet-stream;base64,)" +
-                                 absl::Base64Escape(bin) + R"("}]})");
+    )" + BoxAndQuadBuffers() + "}");
   return R"({"scene": {"materials": [{"name": "grey", "albedo": [0.5, 0.5, 0.5]}],
       "meshes": [{"file": "repeated.gltf", "material": "grey"}]},
     "grid": {"min": [0, 3, 1], "max": [0, 3, 1], "counts": [1, 1, 1], "placement": "ALL"},
