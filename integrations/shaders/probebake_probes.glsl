@@ -170,20 +170,25 @@ bool pbVisibilityMoments(ivec3 probe, vec3 w, out float mean, out float variance
   return true;
 }
 
-// Visibility in [0, 1] of point x from probe `probe` baked at probePos: 1 where
-// 1/|x - probePos| >= the mean of 1/t that way or no ray went that way, else Chebyshev's
-// one-sided bound, cubed.
+// Chebyshev's visibility of a point at distance d > 0 where the moments of 1/t are (mean,
+// variance): 1 where 1/d >= mean, else the one-sided bound, cubed.
+float pbChebyshev(float mean, float variance, float d) {
+  float s = 1.0 / d;
+  if (s >= mean) return 1.0;
+  float excess = mean - s;
+  float p = variance / (variance + excess * excess);
+  return p * p * p;
+}
+
+// Visibility in [0, 1] of point x from probe `probe` baked at probePos; 1 where no ray went that
+// way.
 float pbProbeVisibility(ivec3 probe, vec3 probePos, vec3 x) {
   vec3 fromProbe = x - probePos;
   float d = length(fromProbe);
   if (!(d > 0.0)) return 1.0;
   float mean, variance;
   if (!pbVisibilityMoments(probe, fromProbe / d, mean, variance)) return 1.0;
-  float s = 1.0 / d;
-  if (s >= mean) return 1.0;
-  float excess = mean - s;
-  float p = variance / (variance + excess * excess);
-  return p * p * p;
+  return pbChebyshev(mean, variance, d);
 }
 
 // The blended radiance SH at world point x with normal n (probebake's frame, any length), in
@@ -222,6 +227,21 @@ int pbBlendSh(vec3 x, vec3 n, out vec3 c[9]) {
   float connected[8];
   for (int i = 0; i < 8; i++) connected[i] = 1.0;
   if (pbHasVisibility) {
+    // Each probe's moments toward its neighbours along the edges, read once.
+    bool known[24];
+    float tMean[24], tVar[24], tLen[24];
+    for (int i = 0; i < 8; i++) {
+      for (int a = 0; a < 3; a++) {
+        int j = i ^ (1 << a);
+        known[3 * i + a] = false;
+        tLen[3 * i + a] = 0.0;
+        if (!usable[i] || !usable[j]) continue;
+        vec3 along = probePos[j] - probePos[i];
+        tLen[3 * i + a] = length(along);
+        known[3 * i + a] = tLen[3 * i + a] > 0.0 &&
+            pbVisibilityMoments(probe[i], along / tLen[3 * i + a], tMean[3 * i + a], tVar[3 * i + a]);
+      }
+    }
     float b[64], edge[24], claim[8];
     for (int i = 0; i < 64; i++) b[i] = i / 8 == i % 8 ? 1.0 : 0.0;
     for (int i = 0; i < 8; i++) {
@@ -229,8 +249,9 @@ int pbBlendSh(vec3 x, vec3 n, out vec3 c[9]) {
         int j = i ^ (1 << a);
         edge[3 * i + a] = 0.0;
         if (!usable[i] || !usable[j]) continue;
-        edge[3 * i + a] = min(pbProbeVisibility(probe[i], probePos[i], probePos[j]),
-                              pbProbeVisibility(probe[j], probePos[j], probePos[i]));
+        float ij = known[3 * i + a] ? pbChebyshev(tMean[3 * i + a], tVar[3 * i + a], tLen[3 * i + a]) : 1.0;
+        float ji = known[3 * j + a] ? pbChebyshev(tMean[3 * j + a], tVar[3 * j + a], tLen[3 * j + a]) : 1.0;
+        edge[3 * i + a] = min(ij, ji);
         b[8 * i + j] = edge[3 * i + a];
       }
     }
@@ -239,19 +260,13 @@ int pbBlendSh(vec3 x, vec3 n, out vec3 c[9]) {
         for (int j = 0; j < 8; j++) b[8 * i + j] = max(b[8 * i + j], min(b[8 * i + m], b[8 * m + j]));
     for (int i = 0; i < 8; i++) {
       claim[i] = 1.0;
-      if (!usable[i]) continue;
       for (int a = 0; a < 3; a++) {
-        int j = i ^ (1 << a);
-        if (!usable[j]) continue;
-        vec3 along = probePos[j] - probePos[i];
-        float len = length(along);
-        float mean, variance;
-        if (!(len > 0.0) || !pbVisibilityMoments(probe[i], along / len, mean, variance) ||
-            !(mean > 0.0))
-          continue;
-        float beyond = dot(x - probePos[i], along) / len - 1.0 / mean;
-        float step = clamp(0.5 - beyond / (0.01 * len), 0.0, 1.0);
-        claim[i] *= 1.0 - (1.0 - edge[3 * i + a]) * (1.0 - step);
+        int k = 3 * i + a;
+        if (!known[k] || !(tMean[k] > 0.0)) continue;
+        vec3 along = probePos[i ^ (1 << a)] - probePos[i];
+        float beyond = dot(x - probePos[i], along) / tLen[k] - 1.0 / tMean[k];
+        float step = clamp(0.5 - beyond / (0.01 * tLen[k]), 0.0, 1.0);
+        claim[i] *= 1.0 - (1.0 - edge[k]) * (1.0 - step);
       }
     }
     float support[8];

@@ -137,17 +137,21 @@ bool pbVisibilityMoments(int3 probe, float3 w, out float mean, out float varianc
   return true;
 }
 
+float pbChebyshev(float mean, float variance, float d) {
+  float s = 1.0 / d;
+  if (s >= mean) return 1.0;
+  float excess = mean - s;
+  float p = variance / (variance + excess * excess);
+  return p * p * p;
+}
+
 float pbProbeVisibility(int3 probe, float3 probePos, float3 x) {
   float3 fromProbe = x - probePos;
   float d = length(fromProbe);
   if (!(d > 0.0)) return 1.0;
   float mean, variance;
   if (!pbVisibilityMoments(probe, fromProbe / d, mean, variance)) return 1.0;
-  float s = 1.0 / d;
-  if (s >= mean) return 1.0;
-  float excess = mean - s;
-  float p = variance / (variance + excess * excess);
-  return p * p * p;
+  return pbChebyshev(mean, variance, d);
 }
 
 int pbBlendSh(float3 x, float3 n, out float3 c[9]) {
@@ -177,6 +181,27 @@ int pbBlendSh(float3 x, float3 n, out float3 c[9]) {
   float connected[8];
   [unroll] for (int i1 = 0; i1 < 8; i1++) connected[i1] = 1.0;
   if (pbHasVisibility) {
+    bool known[24];
+    float tMean[24], tVar[24], tLen[24];
+    [unroll] for (int i0 = 0; i0 < 8; i0++) {
+      [unroll] for (int a0 = 0; a0 < 3; a0++) {
+        int j0 = i0 ^ (1 << a0);
+        int k0 = 3 * i0 + a0;
+        known[k0] = false;
+        tLen[k0] = 0.0;
+        tMean[k0] = 0.0;
+        tVar[k0] = 0.0;
+        if (!usable[i0] || !usable[j0]) continue;
+        float3 along0 = probePos[j0] - probePos[i0];
+        tLen[k0] = length(along0);
+        if (tLen[k0] > 0.0) {
+          float mean0, variance0;
+          known[k0] = pbVisibilityMoments(probe[i0], along0 / tLen[k0], mean0, variance0);
+          tMean[k0] = mean0;
+          tVar[k0] = variance0;
+        }
+      }
+    }
     float b[64], edge[24], claim[8];
     [unroll] for (int i2 = 0; i2 < 64; i2++) b[i2] = i2 / 8 == i2 % 8 ? 1.0 : 0.0;
     [unroll] for (int i3 = 0; i3 < 8; i3++) {
@@ -184,9 +209,11 @@ int pbBlendSh(float3 x, float3 n, out float3 c[9]) {
         int j = i3 ^ (1 << a);
         edge[3 * i3 + a] = 0.0;
         if (!usable[i3] || !usable[j]) continue;
-        edge[3 * i3 + a] = min(pbProbeVisibility(probe[i3], probePos[i3], probePos[j]),
-                               pbProbeVisibility(probe[j], probePos[j], probePos[i3]));
-        b[8 * i3 + j] = edge[3 * i3 + a];
+        int kij = 3 * i3 + a, kji = 3 * j + a;
+        float ij = known[kij] ? pbChebyshev(tMean[kij], tVar[kij], tLen[kij]) : 1.0;
+        float ji = known[kji] ? pbChebyshev(tMean[kji], tVar[kji], tLen[kji]) : 1.0;
+        edge[kij] = min(ij, ji);
+        b[8 * i3 + j] = edge[kij];
       }
     }
     [loop] for (int m = 0; m < 8; m++)
@@ -195,19 +222,13 @@ int pbBlendSh(float3 x, float3 n, out float3 c[9]) {
           b[8 * i4 + j4] = max(b[8 * i4 + j4], min(b[8 * i4 + m], b[8 * m + j4]));
     [unroll] for (int i7 = 0; i7 < 8; i7++) {
       claim[i7] = 1.0;
-      if (!usable[i7]) continue;
       [unroll] for (int a7 = 0; a7 < 3; a7++) {
-        int j7 = i7 ^ (1 << a7);
-        if (!usable[j7]) continue;
-        float3 along = probePos[j7] - probePos[i7];
-        float len = length(along);
-        float mean, variance;
-        if (!(len > 0.0) || !pbVisibilityMoments(probe[i7], along / len, mean, variance) ||
-            !(mean > 0.0))
-          continue;
-        float beyond = dot(x - probePos[i7], along) / len - 1.0 / mean;
-        float step = clamp(0.5 - beyond / (0.01 * len), 0.0, 1.0);
-        claim[i7] *= 1.0 - (1.0 - edge[3 * i7 + a7]) * (1.0 - step);
+        int k7 = 3 * i7 + a7;
+        if (!known[k7] || !(tMean[k7] > 0.0)) continue;
+        float3 along = probePos[i7 ^ (1 << a7)] - probePos[i7];
+        float beyond = dot(x - probePos[i7], along) / tLen[k7] - 1.0 / tMean[k7];
+        float step = clamp(0.5 - beyond / (0.01 * tLen[k7]), 0.0, 1.0);
+        claim[i7] *= 1.0 - (1.0 - edge[k7]) * (1.0 - step);
       }
     }
     float support[8];

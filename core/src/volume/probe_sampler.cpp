@@ -35,6 +35,28 @@ struct Corner {
 // at 1 where no corner weighs in.
 void Connectivity(const ProbeVolume& volume, const Vec3d& x, const Corner (&corners)[8],
                   double (&connected)[8]) {
+  // Each probe's moments toward each neighbour along the cell's edges, read once: the edge's
+  // visibility and the wall's place along it both come from them.
+  struct Toward {
+    bool known = false;  // some ray went that way (and the neighbour is not at the probe)
+    double mean = 0, variance = 0, length = 0;
+  };
+  Toward toward[8][3];
+  for (int i = 0; i < 8; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      const int j = i ^ (1 << a);
+      if (!corners[i].usable || !corners[j].usable) continue;
+      Toward& t = toward[i][a];
+      const Vec3d along = corners[j].position - corners[i].position;
+      t.length = Length(along);
+      t.known = t.length > 0 &&
+                VisibilityMoments(volume, corners[i].probe, along / t.length, &t.mean, &t.variance);
+    }
+  }
+  const auto sees = [&](int i, int a) {
+    const Toward& t = toward[i][a];
+    return t.known ? ChebyshevVisibility(t.mean, t.variance, t.length) : 1.0;
+  };
   // Each edge as open as its two probes see each other; b[i][j] the bottleneck over paths of
   // edges from corner i to corner j.
   double edge[8][3] = {}, b[8][8] = {};
@@ -43,9 +65,7 @@ void Connectivity(const ProbeVolume& volume, const Vec3d& x, const Corner (&corn
     for (int a = 0; a < 3; ++a) {
       const int j = i ^ (1 << a);
       if (!corners[i].usable || !corners[j].usable) continue;
-      edge[i][a] = std::min(
-          ProbeVisibility(volume, corners[i].probe, corners[i].position, corners[j].position),
-          ProbeVisibility(volume, corners[j].probe, corners[j].position, corners[i].position));
+      edge[i][a] = std::min(sees(i, a), sees(j, a));
       b[i][j] = edge[i][a];
     }
   }
@@ -60,19 +80,12 @@ void Connectivity(const ProbeVolume& volume, const Vec3d& x, const Corner (&corn
   double claim[8];
   for (int i = 0; i < 8; ++i) {
     claim[i] = 1;
-    if (!corners[i].usable) continue;
     for (int a = 0; a < 3; ++a) {
-      const int j = i ^ (1 << a);
-      if (!corners[j].usable) continue;
-      const Vec3d along = corners[j].position - corners[i].position;
-      const double length = Length(along);
-      double mean, variance;
-      if (!(length > 0) ||
-          !VisibilityMoments(volume, corners[i].probe, along / length, &mean, &variance) ||
-          !(mean > 0))
-        continue;
-      const double beyond = Dot(x - corners[i].position, along) / length - 1 / mean;
-      const double step = std::clamp(0.5 - beyond / (kRamp * length), 0.0, 1.0);
+      const Toward& t = toward[i][a];
+      if (!t.known || !(t.mean > 0)) continue;
+      const Vec3d along = corners[i ^ (1 << a)].position - corners[i].position;
+      const double beyond = Dot(x - corners[i].position, along) / t.length - 1 / t.mean;
+      const double step = std::clamp(0.5 - beyond / (kRamp * t.length), 0.0, 1.0);
       claim[i] *= 1 - (1 - edge[i][a]) * (1 - step);
     }
   }

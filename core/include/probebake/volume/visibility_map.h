@@ -189,11 +189,20 @@ inline bool VisibilityMoments(const ProbeVolume& volume, int64_t probe, const Ve
   return true;
 }
 
+// Chebyshev's visibility, in [0, 1], of a point at distance d > 0 where the moments of s = 1/t
+// are (mean, variance): 1 when 1/d >= mean (the point nearer than the surfaces seen that way),
+// else the one-sided bound p = var / (var + (mean - 1/d)^2), cubed as DDGI does.
+inline double ChebyshevVisibility(double mean, double variance, double d) {
+  const double s = 1 / d;
+  if (s >= mean) return 1;
+  const double excess = mean - s;
+  const double p = variance / (variance + excess * excess);
+  return p * p * p;
+}
+
 // The visibility, in [0, 1], of point x from probe `probe` of `volume` (which must have
-// visibility moments) baked at probePos (grid point + offset), with s = 1/|x - probePos| and
-// the moments around the direction to x (VisibilityMoments): 1 when s >= mean (x nearer than the
-// surfaces seen that way) or when no ray went that way, else Chebyshev's one-sided bound
-// p = var / (var + (mean - s)^2), cubed as DDGI does.
+// visibility moments) baked at probePos (grid point + offset): ChebyshevVisibility of the
+// moments around the direction to x (VisibilityMoments), 1 where no ray went that way.
 inline double ProbeVisibility(const ProbeVolume& volume, int64_t probe, const Vec3d& probePos,
                               const Vec3d& x) {
   const Vec3d fromProbe = x - probePos;
@@ -201,11 +210,7 @@ inline double ProbeVisibility(const ProbeVolume& volume, int64_t probe, const Ve
   if (!(d > 0)) return 1;
   double mean, variance;
   if (!VisibilityMoments(volume, probe, fromProbe / d, &mean, &variance)) return 1;
-  const double s = 1 / d;
-  if (s >= mean) return 1;  // nearer than the surfaces the probe sees that way
-  const double excess = mean - s;
-  const double p = variance / (variance + excess * excess);
-  return p * p * p;
+  return ChebyshevVisibility(mean, variance, d);
 }
 
 }  // namespace probebake
