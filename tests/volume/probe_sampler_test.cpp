@@ -88,8 +88,10 @@ std::string Figures(const Leak& leak) {
 
 // The issue's criterion: dark/lit irradiance below 2% with the sampler's defaults at every
 // point within a quarter spacing of the wall. Printed beside it: Chebyshev visibility without
-// the cell's connectivity (DDGI's weights) and plain trilinear interpolation, which the test
-// also asserts leak (so that the scene tests something).
+// the cell's connectivity (DDGI's weights) and plain trilinear interpolation (the issue asks for
+// the latter's figure; where a layer lies against the wall on the dark side it leaks nothing).
+// The lit room must stay lit (its mean, and its darkest point against Chebyshev alone's), so a
+// sampler that darkens everything cannot pass.
 void ExpectNoLeak(double firstX) {
   const BakeJob job = TwoRoomsWithThinWall(firstX);
   const ProbeVolume volume = BakeOrDie(job);
