@@ -100,5 +100,30 @@ TEST(LightSet, SampledPdfEqualsThePdfOfTheRayThatFindsTheLightThroughLightTrees)
   ExpectSampledPdfsEqualThePdfsOfTheRaysThatFindTheLights(1);
 }
 
+TEST(LightSet, ScaleAtSurfacesScalesASurfacesChoiceAndNotTheProbes) {
+  // RoomWithOpening's lights: the rect light (0), the sun (1), the sky. A sun scaled by 0.1 at
+  // surfaces keeps its importance at a probe (no normal) and has a tenth of it at a surface, and
+  // the choice's pmf there follows.
+  const Scene scene = RoomWithOpening();
+  auto tracer = TracerScene::Build(scene, LocalOrigin(scene));
+  ASSERT_TRUE(tracer.ok()) << tracer.status();
+  LightSet lights(scene, **tracer);
+  const Vec3d p{0.5, 1.5, 1}, n{0, 0, 1};
+  std::vector<double> atProbe(lights.ImportanceSize()), atSurface(lights.ImportanceSize());
+  std::vector<double> probeScaled(atProbe.size()), surfaceScaled(atSurface.size());
+  lights.Importance(p, nullptr, /*includeDelta=*/true, atProbe);
+  const double total = lights.Importance(p, &n, /*includeDelta=*/true, atSurface);
+  ASSERT_GT(atSurface[1], 0);
+  lights.ScaleAtSurfaces(1, 0.1);
+  lights.Importance(p, nullptr, /*includeDelta=*/true, probeScaled);
+  const double scaledTotal = lights.Importance(p, &n, /*includeDelta=*/true, surfaceScaled);
+  EXPECT_EQ(probeScaled, atProbe);
+  EXPECT_EQ(surfaceScaled[1], atSurface[1] * 0.1);
+  EXPECT_EQ(surfaceScaled[0], atSurface[0]);
+  EXPECT_DOUBLE_EQ(scaledTotal, total - 0.9 * atSurface[1]);
+  EXPECT_DOUBLE_EQ(lights.SelectionPmf(1, p, &n, surfaceScaled, scaledTotal),
+                   surfaceScaled[1] / scaledTotal);
+}
+
 }  // namespace
 }  // namespace probebake

@@ -117,6 +117,7 @@ double LightSet::Importance(const Vec3d& p, const Vec3d* n, bool includeDelta,
     for (size_t s = 0; s < count; ++s) {
       double w = !includeDelta && lights[s].delta() ? 0.0 : lights[s].Importance(p, n);
       if (factor) w *= factor[s];
+      if (n && !surfaceScale_.empty()) w *= surfaceScale_[s];
       out[s] = w;
       total += w;
     }
@@ -133,9 +134,18 @@ double LightSet::Importance(const Vec3d& p, const Vec3d* n, bool includeDelta,
       importance[s] = lights_[slot.light].Importance(p, n);
     }
     if (factor) importance[s] *= factor[s];
+    if (n && !surfaceScale_.empty()) importance[s] *= surfaceScale_[s];
     total += importance[s];
   }
   return total;
+}
+
+void LightSet::ScaleAtSurfaces(uint32_t light, double factor) {
+  PB_CHECK_LT(size_t(light), lights_.size());
+  const uint32_t slot = slotOfLight_[light];
+  PB_CHECK(slots_[slot].tree < 0);
+  if (surfaceScale_.empty()) surfaceScale_.assign(slots_.size(), 1.0);
+  surfaceScale_[slot] = factor;
 }
 
 bool LightSet::SampleEntry(size_t entry, const Vec3d& p, double uTree, const Vec2d& u,

@@ -62,6 +62,11 @@ class LightSet {
   LightSet(LightSet&& lights, LightVisibility visibility);
   LightSet(LightSet&&) = default;
 
+  // Multiplies the importance of `light` (one of the linear choice, not in a light tree) at
+  // surface points (n given) by factor > 0 from now on; at probes and in a medium it is left
+  // alone. Not thread-safe: call before sampling.
+  void ScaleAtSurfaces(uint32_t light, double factor);
+
   // Number of lights.
   size_t Count() const { return lights_.size(); }
   bool Empty() const { return lights_.empty(); }
@@ -155,7 +160,8 @@ class LightSet {
   std::vector<uint32_t> slotOfLight_;  // per light: its slot, or its tree's slot
   std::vector<int> treeOfLight_;       // per light: index into trees_, or -1
   std::vector<std::unique_ptr<LightTree>> trees_;
-  LightVisibility visibility_;  // empty: importance unscaled
+  LightVisibility visibility_;        // empty: importance unscaled
+  std::vector<double> surfaceScale_;  // per slot, at surfaces (ScaleAtSurfaces); empty: all 1
 };
 
 template <typename Visit>
