@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "distant_light_paths.h"
 #include "probe_finish.h"
 #include "probe_integrator.h"
 #include "probe_relocation.h"
@@ -228,6 +229,8 @@ struct TraceableScene {
   std::unique_ptr<TracerScene> tracer;
   std::unique_ptr<LightSet> lights;
   std::unique_ptr<ProbeIntegrator> integrator;
+  // Light traced from the directional lights, joined to the probes (null: none to trace).
+  std::unique_ptr<DistantLightPaths> lightPaths;
   int64_t visibilityRays = 0;  // traced to build the visibility table
 };
 
@@ -265,6 +268,25 @@ absl::StatusOr<TraceableScene> TraceableScene::Build(const BakeJob& job,
   }
   s.integrator = std::make_unique<ProbeIntegrator>(job.scene, *s.tracer, *s.lights, job.settings);
   s.integrator->SetRayObserver(options.rayObserver);
+  if (job.settings.distantLightTracing) {
+    const auto start = Clock::now();
+    const BakeSettings& settings = job.settings;
+    const int batches = int(std::min<int64_t>(settings.batches, settings.samplesPerProbe));
+    std::vector<int64_t> sizes(size_t(std::max(batches, 0)));
+    for (int b = 0; b < batches; ++b)
+      sizes[size_t(b)] = BatchSize(settings.samplesPerProbe, batches, b);
+    s.lightPaths = DistantLightPaths::Build(job.scene, *s.tracer, s.lights.get(), settings, sizes);
+    if (s.lightPaths) {
+      s.integrator->SetLightPaths(s.lightPaths.get());
+      Logger("bake")->info("light traced from the directional lights: {} vertices kept, {:.3f} s",
+                           s.lightPaths->VertexCount(), Seconds(start));
+      for (size_t i = 0; i < job.scene.lights.size(); ++i)
+        if (s.lightPaths->Traces(uint32_t(i)))
+          Logger("bake")->info("  light {}: {} paths a sample, {:.4f} of their first hits kept", i,
+                               s.lightPaths->Lambda(uint32_t(i)),
+                               s.lightPaths->KeptFraction(uint32_t(i)));
+    }
+  }
   return s;
 }
 

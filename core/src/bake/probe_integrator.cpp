@@ -35,6 +35,9 @@ inline constexpr bool kRotatedSetsAtProbe = std::is_same_v<S, SobolSampler>;
 // scattering vertex (VertexNumbers).
 constexpr uint64_t kProbeSets = 3, kVertexSets = 4;
 
+// The stream of the numbers that pick a sunlit point to join a vertex to.
+constexpr uint64_t kConnectTag = 0x636f6e6e656374;  // "connect"
+
 // A ray's slot when there is no such ray, and when a shadow ray needs no tracing (visible).
 constexpr uint16_t kNoRay = 0xFFFF, kVisible = 0xFFFE;
 
@@ -322,8 +325,14 @@ struct PathState {
   Vec3d pPrev, nPrev;
   bool hasNormal = false;
   double total = 0;
+  // The surface vertex before that one (for light tracing's weights), when there is one.
+  Vec3d pBefore, nBefore;
+  bool hasBefore = false;
   // The distance to the surface the path's first ray (from the probe) hit; +inf on a miss.
   double firstHit = 0;
+  // That hit's density as the probe's uniform direction drew it, per unit area (cos / (4 pi
+  // t^2)); 0 on a miss.
+  double d1 = 0;
   // With sky transfer: whether the path escaped the scene, with which throughput and direction.
   bool escaped = false;
   Vec3d skyBeta, skyDir;
@@ -407,6 +416,8 @@ struct ProbeIntegrator::Probe {
   double total = 0;
   double pdf = UniformSpherePdf();  // of the path's first direction
   bool lightSample = false;         // a light is sampled at the probe
+  uint64_t key = 0;                 // ProbeSite::key
+  uint32_t firstBatch = 0;          // of the call
 };
 
 // Up to kWidth samples traced together: started at the probe together, then wave by wave. "By
@@ -596,6 +607,8 @@ bool ProbeIntegrator::TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t fi
   probe.total = lights_.Importance(p, nullptr, /*includeDelta=*/false, group.probeImportance);
   probe.importance = group.probeImportance;
   probe.lightSample = lightSampling_ && probe.total > 0;
+  probe.key = probeKey;
+  probe.firstBatch = firstBatch;
 
   group.observer =
       observer_ && observer_->BeginCall(probeKey, firstBatch, count) ? observer_ : nullptr;
@@ -618,6 +631,13 @@ bool ProbeIntegrator::TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t fi
     TraceWaves<kMedium>(probe, std::span<S>(samplers), &group, &local);
     AddToSums<kMedium>(probe, group, work);
     local.samples += group.n;
+  }
+  if (lightPaths_) {
+    for (size_t k = 0; k < work.size(); ++k) {
+      if (work[k].count == 0) continue;
+      lightPaths_->ConnectProbe(p, firstBatch + uint32_t(k), work[k].count, settings_.shOrder,
+                                work[k].sum, &local, group.observer);
+    }
   }
   if (shared) shared->Add(local);
   if (observer_) observer_->EndCall();
@@ -674,6 +694,7 @@ void ProbeIntegrator::StartAtProbe(const Probe& probe, std::span<S> samplers,
     if constexpr (kMedium) s.origin = probe.origin;
     s.pPrev = probe.p;
     s.hasNormal = false;
+    s.hasBefore = false;
     s.total = probe.total;
     s.escaped = false;
 
@@ -731,7 +752,11 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
       const SurfaceHit& hit = g->hit[k];
       // The vertex's light importance, written by its shading.
       const auto here = [&] { return std::span<double>(importanceHere + j * size, size); };
-      if (bounce == 1) s.firstHit = g->found[k] ? hit.t : kInf;
+      if (bounce == 1) {
+        s.firstHit = g->found[k] ? hit.t : kInf;
+        s.d1 = g->found[k] && hit.t > 0 ? std::fabs(Dot(s.wi, hit.ng)) * probe.pdf / (hit.t * hit.t)
+                                        : 0.0;
+      }
       bool scattered = false;
       VertexNumbers drawn;  // with a medium: the vertex's numbers, drawn once it is found
       const VertexNumbers* u = kMedium ? &drawn : &g->vertex[j];
@@ -763,13 +788,29 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
             bounce == 1 ? probe.importance
                         : std::span<const double>(importanceBefore + j * size, size);
         Vec3d albedoHere;  // a varying albedo's value at the hit, when Arrive reads one
+        const LightPathContext context{s.d1,
+                                       s.hasNormal ? &s.pPrev : nullptr,
+                                       s.hasNormal ? &s.nPrev : nullptr,
+                                       s.hasBefore ? &s.pBefore : nullptr,
+                                       s.hasBefore ? &s.nBefore : nullptr,
+                                       probe.firstBatch + g->batch[j]};
         const Vec3d* albedo =
             Arrive(g->found[k], hit, bounce, s.pPrev, s.hasNormal ? &s.nPrev : nullptr, before,
-                   s.total, s.wi, s.pdfDir, s.beta, &s.radiance, &albedoHere);
+                   s.total, s.wi, s.pdfDir, context, s.beta, &s.radiance, &albedoHere);
         if (!albedo) continue;
         if constexpr (kMedium) drawn = DrawVertexNumbers(samplers[g->batch[j]]);
         if (MaxComponent(*albedo) <= 0) continue;
-        ShadeSurface(hit, s.wi, *albedo, *u, bounce, here(), &s.beta, &v);
+        const Vec3d betaIn = s.beta;
+        ShadeSurface(hit, s.wi, *albedo, *u, bounce, context, here(), &s.beta, &v);
+        if (lightPaths_ && bounce < settings_.maxDepth) {
+          // Joined to a sunlit point (distant_light_paths.h), with a number of its own.
+          const uint64_t key = Hash(probe.key, uint64_t(probe.firstBatch + g->batch[j]),
+                                    uint64_t(g->index[j]), uint64_t(bounce), kConnectTag);
+          const Vec3d e = lightPaths_->ConnectVertex(
+              hit.p, v.n, v.spawn, probe.firstBatch + g->batch[j], U32ToUnit(uint32_t(key >> 32)),
+              s.d1, counters, g->observer);
+          if (MaxComponent(e) > 0) s.radiance += betaIn * *albedo * e * kInvPi;
+        }
       }
 
       if (v.lightSampled) {
@@ -788,6 +829,9 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
       s.wi = v.wi;
       s.pdfDir = v.pdfDir;
       if constexpr (kMedium) s.origin = v.spawn;
+      s.pBefore = s.pPrev;
+      s.nBefore = s.nPrev;
+      s.hasBefore = s.hasNormal;
       s.pPrev = scattered ? v.x : hit.p;
       s.nPrev = v.n;
       s.hasNormal = !scattered;
@@ -870,11 +914,18 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
 [[gnu::always_inline]] inline const Vec3d* ProbeIntegrator::Arrive(
     bool found, const SurfaceHit& hit, int bounce, const Vec3d& pPrev, const Vec3d* nPrev,
     std::span<const double> importancePrev, double totalPrev, const Vec3d& wi, double pdfDir,
-    const Vec3d& beta, Vec3d* radiance, Vec3d* albedoHere) const {
+    const LightPathContext& context, const Vec3d& beta, Vec3d* radiance, Vec3d* albedoHere) const {
   if (!found) {
     if (countEmission_) {
       lights_.ForEachEscaped(nPrev, importancePrev, totalPrev, wi, [&](const LightHit& h) {
-        const double w = mis_ ? PowerHeuristic(pdfDir, h.pdf) : 1.0;
+        double w = mis_ ? PowerHeuristic(pdfDir, h.pdf) : 1.0;
+        // A sun's cone found from a surface: light tracing makes the same path too.
+        if (lightPaths_ && nPrev && lightPaths_->Traces(h.light)) {
+          const double other =
+              lightPaths_->OtherDensitySquared(h.light, pPrev, *nPrev, wi, context.d1,
+                                               context.xBefore, context.nBefore, context.batch);
+          w = pdfDir * pdfDir / (pdfDir * pdfDir + h.pdf * h.pdf + other);
+        }
         *radiance += beta * h.radiance * w;
       });
     }
@@ -898,7 +949,7 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
 
 [[gnu::always_inline]] inline void ProbeIntegrator::ShadeSurface(
     const SurfaceHit& hit, const Vec3d& wi, const Vec3d& albedo, const VertexNumbers& u, int bounce,
-    std::span<double> importance, Vec3d* beta, Vertex* v) const {
+    const LightPathContext& context, std::span<double> importance, Vec3d* beta, Vertex* v) const {
   // Shade on the side the ray arrived from; both sides of a mesh reflect.
   v->n = Dot(wi, hit.ng) < 0 ? hit.ng : -hit.ng;
   v->spawn = OffsetRayOrigin(hit.p, v->n, hit.vertexScale);
@@ -918,6 +969,14 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
       v->neeBase = *beta * albedo * v->ls.radiance;
       v->neeScale = pdfBsdf * ((mis_ && !v->ls.delta) ? PowerHeuristicOverPdf(v->ls.pdf, pdfBsdf)
                                                       : 1 / v->ls.pdf);
+      if (lightPaths_ && lightPaths_->Traces(v->ls.light)) {
+        // A directional light: light tracing makes the same path too (distant_light_paths.h).
+        const double other =
+            lightPaths_->OtherDensitySquared(v->ls.light, hit.p, v->n, v->ls.wi, context.d1,
+                                             context.xPrev, context.nPrev, context.batch);
+        const double pdf = v->ls.pdf, bsdf = v->ls.delta ? 0.0 : pdfBsdf;
+        v->neeScale = pdfBsdf * pdf / (pdf * pdf + bsdf * bsdf + other);
+      }
     }
   }
 

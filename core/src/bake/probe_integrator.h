@@ -73,6 +73,7 @@
 #include <optional>
 #include <span>
 
+#include "distant_light_paths.h"
 #include "light_set.h"
 #include "medium.h"
 #include "probebake/bake/ray_observer.h"
@@ -146,6 +147,12 @@ class ProbeIntegrator {
   // default). Not thread-safe against running calls: set before tracing.
   void SetRayObserver(RayObserver* observer) { observer_ = observer; }
 
+  // Joins `paths` (distant_light_paths.h: built for this integrator's scene, lights and settings,
+  // with the bake's batch sizes) to every probe's batches, and weighs the directional lights'
+  // next-event and direction samples against them. Null (the default): no light tracing. Not
+  // thread-safe against running calls: set before tracing.
+  void SetLightPaths(const DistantLightPaths* paths) { lightPaths_ = paths; }
+
   // Fraction of the sampled light's radiance that reaches `origin`: 0 when occluded, else the
   // medium's transmittance (1 without a medium).
   Vec3d ShadowTransmittance(const Vec3f& origin, const LightSample& s,
@@ -203,16 +210,26 @@ class ProbeIntegrator {
   // vertex the path continues from, or nullptr when it ends there (no hit, a light's surface, or
   // bounce past maxDepth): the material's constant albedo, or, where it varies over the surface,
   // its value at the hit written to *albedoHere.
+  // What the weights against light tracing (distant_light_paths.h) need of a path: the density
+  // of its first vertex as the probe's direction drew it (per unit area: cos / (4 pi r^2)), the
+  // surface vertex the ray in flight left (null when it left the probe) and the one before that.
+  struct LightPathContext {
+    double d1 = 0;
+    const Vec3d *xPrev = nullptr, *nPrev = nullptr;
+    const Vec3d *xBefore = nullptr, *nBefore = nullptr;
+    uint32_t batch = 0;  // the path's batch (of the whole probe, not of the call)
+  };
   const Vec3d* Arrive(bool found, const SurfaceHit& hit, int bounce, const Vec3d& pPrev,
                       const Vec3d* nPrev, std::span<const double> importancePrev, double totalPrev,
-                      const Vec3d& wi, double pdfDir, const Vec3d& beta, Vec3d* radiance,
-                      Vec3d* albedoHere) const;
+                      const Vec3d& wi, double pdfDir, const LightPathContext& context,
+                      const Vec3d& beta, Vec3d* radiance, Vec3d* albedoHere) const;
   // Shades the diffuse vertex (albedo > 0) at `hit`, reached along wi, as vertex `bounce` with the
   // numbers u: its light sample, continuation and roulette. `importance` gets its light
-  // importance; *beta becomes the continuation's throughput.
+  // importance; *beta becomes the continuation's throughput. context as for Arrive, for the
+  // path that arrived here.
   void ShadeSurface(const SurfaceHit& hit, const Vec3d& wi, const Vec3d& albedo,
-                    const VertexNumbers& u, int bounce, std::span<double> importance, Vec3d* beta,
-                    Vertex* v) const;
+                    const VertexNumbers& u, int bounce, const LightPathContext& context,
+                    std::span<double> importance, Vec3d* beta, Vertex* v) const;
   // Shades the scattering event at x in the medium, reached along wi, as ShadeSurface does a
   // surface: the phase function in place of the BSDF.
   void ShadeMedium(const Vec3d& x, const Vec3d& wi, const VertexNumbers& u, int bounce,
@@ -235,6 +252,7 @@ class ProbeIntegrator {
   bool mis_;            // weight the two by the power heuristic
   bool packets_;        // trace calls large enough for them as packets
   RayObserver* observer_ = nullptr;
+  const DistantLightPaths* lightPaths_ = nullptr;
   int skyOrder_;  // Ls of the sky transfer; 0: off
 };
 

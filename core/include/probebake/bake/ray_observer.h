@@ -5,10 +5,12 @@
 // with or without one.
 //
 // Scope: the rays of the probes' sampling (ProbeIntegrator::TraceBatches): each sample's first
-// ray from the probe, the continuation rays of its path, and the shadow rays of its light
-// samples at the probe and at every vertex. Not seen: placement and validity rays, the light
-// visibility table's rays and the shadow rays of delta lights at the probe (projected once per
-// probe, outside the batches).
+// ray from the probe, the continuation rays of its path, the shadow rays of its light samples at
+// the probe and at every vertex, and the shadow rays that join the probe and its paths' vertices
+// to light traced from directional lights (core/src/bake/distant_light_paths.h), cast one at a
+// time. Not seen: placement and validity rays, the light visibility table's rays, the paths traced
+// from directional lights (once per bake, shared by the probes) and the shadow rays of delta
+// lights at the probe (projected once per probe, outside the batches).
 #pragma once
 
 #include <cstdint>

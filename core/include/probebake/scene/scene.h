@@ -252,6 +252,9 @@ struct BakeSettings {
   // Ls of the sky transfer (BakeSettings.sky_transfer.order in job.proto); 0: off, the
   // environment bakes into the radiance like any light.
   int skyTransferOrder = 0;
+  // Light traced from directional lights and joined to the probes, weighed against the probes'
+  // own paths (core/src/bake/distant_light_paths.h). Not a job field: off only to measure it.
+  bool distantLightTracing = true;
 };
 
 // A job ready to bake.
