@@ -1076,6 +1076,40 @@ std::string SpeedupsBlock(const BenchResults& r) {
       parts.c_str(), slopes.c_str());
 }
 
+// Time to a mean error of 5%, 2% and 1% with light traced from directional lights (the default)
+// and without it (the default before baker version 20), on each scene with such a light.
+std::string LightTracingBlock(const BenchResults& r) {
+  const double levels[] = {0.05, 0.02, 0.01};
+  std::string md;
+  for (const SceneInfo& sc : r.scenes) {
+    const std::vector<Point> with = Curve(r, sc.name, "nee_mis_sobol"),
+                             without = Curve(r, sc.name, "nee_mis_sobol_no_lt");
+    if (with.empty() || without.empty()) continue;
+    md += "| " + SceneTitle(sc.name) + ", CPU time to a mean error of |";
+    for (double e : levels) md += Format(" %s |", Pct(e, 2).c_str());
+    md += "\n| --- |";
+    for (size_t i = 0; i < std::size(levels); ++i) md += " --- |";
+    md += "\n| without light tracing (the default before) |";
+    for (double e : levels) md += Format(" %s |", TimeText(TimeToError(without, e)).c_str());
+    md += "\n| **with light tracing (the default)** |";
+    for (double e : levels) md += Format(" **%s** |", TimeText(TimeToError(with, e)).c_str());
+    md += "\n| time without / time with |";
+    for (double e : levels) {
+      const TimeTo a = TimeToError(without, e), b = TimeToError(with, e);
+      if (a.how == Reach::kNone || b.how == Reach::kNone || a.how == Reach::kBelowAtFirst ||
+          b.how == Reach::kBelowAtFirst) {
+        md += " - |";
+        continue;
+      }
+      md += Format(" %s%.2f× |",
+                   a.how == Reach::kExtrapolated || b.how == Reach::kExtrapolated ? "~" : "",
+                   a.time / b.time);
+    }
+    md += "\n\n";
+  }
+  return md.empty() ? "Not measured.\n" : md + "(`~`: extrapolated as above.)\n";
+}
+
 // Time to equal error with 16 batches (the default before baker version 16) against the default
 // of 4, per scene: what the larger point set per batch buys.
 std::string BatchesBlock(const BenchResults& r) {
@@ -1371,6 +1405,7 @@ std::map<std::string, std::string> DocBlocks(const BenchResults& r, const std::s
   blocks["depth"] = DepthBlock(r);
   blocks["settings"] = SettingsBlock(r);
   blocks["batches"] = BatchesBlock(r);
+  blocks["light-tracing"] = LightTracingBlock(r);
   return blocks;
 }
 
