@@ -64,6 +64,16 @@ TEST(DistantLightPaths, SunThroughAHoleLightsASquareOfFloor) {
   EXPECT_LT(ratio, 0.5);
 }
 
+// RoomWithOpening (a sun through the roof's opening, a ceiling light, a sky) with 3 x ny x 2
+// probes across it, y spacing dy.
+BakeJob RoomJob(int64_t samples, int ny, double dy) {
+  BakeJob job = MakeJob(2, samples, {-3, -2, 0.5});
+  job.scene = RoomWithOpening();
+  job.grid.counts[0] = 3, job.grid.counts[1] = ny, job.grid.counts[2] = 2;
+  job.grid.spacing = {3, dy, 1.5};
+  return job;
+}
+
 TEST(DistantLightPaths, AgreeWithTheProbesOwnPathsInARoom) {
   // The room with a sun through its roof's opening, a ceiling light and a sky: no closed form,
   // so the bake with light tracing is held against the bake without it. Each coefficient's
@@ -73,10 +83,7 @@ TEST(DistantLightPaths, AgreeWithTheProbesOwnPathsInARoom) {
   // z^2 has a standard error of sqrt(2.24 / 162) = 0.118: accepted within 4 of them of 1.03. A
   // weight that counted a path twice or not at all (the sun's light is most of these probes')
   // moves every z the same way and fails it.
-  BakeJob job = MakeJob(2, 2048, {-3, -2, 0.5});
-  job.scene = RoomWithOpening();
-  job.grid.counts[0] = 3, job.grid.counts[1] = 3, job.grid.counts[2] = 2;
-  job.grid.spacing = {3, 2, 1.5};
+  BakeJob job = RoomJob(2048, 3, 2);
   job.settings.maxDepth = 4;
   const ProbeVolume traced = BakeOrDie(job);
   // Numbers of their own: the same seed would share the probes' paths, and the two estimates'
@@ -109,10 +116,7 @@ TEST(DistantLightPaths, AgreeWithTheProbesOwnPathsInARoom) {
 
 TEST(DistantLightPaths, SameBitsOnOneThreadAndMany) {
   // The light paths are traced in parallel per batch, and the probes join them from any thread.
-  BakeJob job = MakeJob(2, 512, {-3, -2, 0.5});
-  job.scene = RoomWithOpening();
-  job.grid.counts[0] = 3, job.grid.counts[1] = 2, job.grid.counts[2] = 2;
-  job.grid.spacing = {3, 4, 1.5};
+  BakeJob job = RoomJob(512, 2, 4);
   job.settings.batches = 4;
   const ProbeVolume one = BakeOrDie(job, 1), many = BakeOrDie(job, 4);
   ASSERT_EQ(one.radiance.size(), many.radiance.size());

@@ -1076,6 +1076,19 @@ std::string SpeedupsBlock(const BenchResults& r) {
       parts.c_str(), slopes.c_str());
 }
 
+// A table cell: the time curve `a` takes to reach error e over the time `b` takes ("~" when
+// either is extrapolated), or kNoRatio when either never gets there or starts below it.
+constexpr const char* kNoRatio = " - |";
+std::string RatioCell(const std::vector<Point>& a, const std::vector<Point>& b, double e) {
+  const TimeTo ta = TimeToError(a, e), tb = TimeToError(b, e);
+  if (ta.how == Reach::kNone || tb.how == Reach::kNone || ta.how == Reach::kBelowAtFirst ||
+      tb.how == Reach::kBelowAtFirst)
+    return kNoRatio;
+  return Format(" %s%.2f× |",
+                ta.how == Reach::kExtrapolated || tb.how == Reach::kExtrapolated ? "~" : "",
+                ta.time / tb.time);
+}
+
 // Time to a mean error of 5%, 2% and 1% with light traced from directional lights (the default)
 // and without it (the default before baker version 20), on each scene with such a light.
 std::string LightTracingBlock(const BenchResults& r) {
@@ -1094,17 +1107,7 @@ std::string LightTracingBlock(const BenchResults& r) {
     md += "\n| **with light tracing (the default)** |";
     for (double e : levels) md += Format(" **%s** |", TimeText(TimeToError(with, e)).c_str());
     md += "\n| time without / time with |";
-    for (double e : levels) {
-      const TimeTo a = TimeToError(without, e), b = TimeToError(with, e);
-      if (a.how == Reach::kNone || b.how == Reach::kNone || a.how == Reach::kBelowAtFirst ||
-          b.how == Reach::kBelowAtFirst) {
-        md += " - |";
-        continue;
-      }
-      md += Format(" %s%.2f× |",
-                   a.how == Reach::kExtrapolated || b.how == Reach::kExtrapolated ? "~" : "",
-                   a.time / b.time);
-    }
+    for (double e : levels) md += RatioCell(without, with, e);
     md += "\n\n";
   }
   return md.empty() ? "Not measured.\n" : md + "(`~`: extrapolated as above.)\n";
@@ -1126,16 +1129,9 @@ std::string BatchesBlock(const BenchResults& r) {
     if (four.empty() || sixteen.empty()) continue;
     md += "| " + SceneTitle(sc.name) + " |";
     for (double e : levels) {
-      const TimeTo a = TimeToError(sixteen, e), b = TimeToError(four, e);
-      if (a.how == Reach::kNone || b.how == Reach::kNone || a.how == Reach::kBelowAtFirst ||
-          b.how == Reach::kBelowAtFirst) {
-        md += " - |";
-        continue;
-      }
-      md += Format(" %s%.2f× |",
-                   a.how == Reach::kExtrapolated || b.how == Reach::kExtrapolated ? "~" : "",
-                   a.time / b.time);
-      any = true;
+      const std::string cell = RatioCell(sixteen, four, e);
+      any = any || cell != kNoRatio;
+      md += cell;
     }
     md += "\n";
   }
