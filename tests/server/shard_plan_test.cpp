@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 
 #include "probebake/bake/bake.h"
@@ -32,7 +33,9 @@ using runtime::ShardPlan;
 using runtime::WorkEstimate;
 
 // A floor, a slab of solid boxes filling most of the grid's +x half (so placement leaves many of
-// its points out) and a rect light under a sky; a 9 x 7 x 5 grid with non-binary spacings.
+// its points out), a rect light and a sun (whose light is also traced from it: light paths that
+// every shard traces again from the scene alone) under a sky; a 9 x 7 x 5 grid with non-binary
+// spacings.
 BakeJob WholeJob() {
   BakeJob job = MakeJob(2, 32, {-1.7, -1.3, 0.3});
   job.grid.counts[0] = 9;
@@ -49,6 +52,8 @@ BakeJob WholeJob() {
   AddQuad(&job.scene, {-3, -3, 0}, {3, -3, 0}, {3, 3, 0}, {-3, 3, 0}, white);
   AddBox(&job.scene, {0.15, -1.5, 0.1}, {2.0, 1.5, 1.6}, white, false);
   job.scene.lights.push_back(RectLight{{-0.5, -0.5, 2.5}, {0, 1, 0}, {1, 0, 0}, {5, 5, 5}, false});
+  job.scene.lights.push_back(
+      DirectionalLight{Normalize(Vec3d{0.3, 0.2, -1}), {3, 3, 3}, std::cos(0.005)});
   return job;
 }
 
