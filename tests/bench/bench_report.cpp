@@ -1110,7 +1110,8 @@ std::string LightTracingBlock(const BenchResults& r) {
     for (double e : levels) md += RatioCell(without, with, e);
     md += "\n\n";
   }
-  return md.empty() ? "Not measured.\n" : md + "(`~`: extrapolated as above.)\n";
+  if (md.empty()) return "Not measured.\n";
+  return md.find('~') == std::string::npos ? md : md + "(`~`: extrapolated as above.)\n";
 }
 
 // Time to equal error with 16 batches (the default before baker version 16) against the default
