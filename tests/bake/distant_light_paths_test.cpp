@@ -6,6 +6,9 @@
 #include <cmath>
 
 #include "bake_test_util.h"
+#include "core/src/bake/distant_light_paths.h"
+#include "core/src/bake/light_set.h"
+#include "core/src/bake/tracer_scene.h"
 
 namespace probebake {
 namespace {
@@ -126,6 +129,65 @@ TEST(DistantLightPaths, SameBitsOnOneThreadAndMany) {
   job.settings.distantLightTracing = false;
   const ProbeVolume without = BakeOrDie(job, 1);
   EXPECT_NE(one.radiance[0], without.radiance[0]);
+}
+
+// A white floor with a box on it, open to the sky: most of a sun's rays land inside.
+Scene OpenFloor() {
+  Scene scene;
+  const uint32_t white = AddMaterial(&scene, {0.7, 0.7, 0.7});
+  AddQuad(&scene, {-3, -3, 0}, {3, -3, 0}, {3, 3, 0}, {-3, 3, 0}, white);
+  AddBox(&scene, {-0.5, -0.5, 0}, {0.5, 0.5, 1}, white, /*inward=*/false);
+  return scene;
+}
+
+TEST(DistantLightPaths, HoldAboutKMaxKeptPathsAtMostWhateverTheSampleCount) {
+  // 4 batches of 2^22 samples (a probe of 16M samples, the job limit): lambda n_b would be
+  // millions of kept paths; the cap keeps about kMaxKeptPaths over the batches (the pilot's
+  // kept fraction, from 4096 paths, is within a few percent of the batches': at most 10% over).
+  Scene scene = OpenFloor();
+  scene.lights.push_back(DirectionalLight{Normalize(Vec3d{0.2, 0.1, -1}), {3, 3, 3}, 1.0});
+  auto tracer = TracerScene::Build(scene, LocalOrigin(scene));
+  ASSERT_TRUE(tracer.ok()) << tracer.status();
+  LightSet lights(scene, **tracer);
+  BakeSettings settings;
+  const std::vector<int64_t> batches(4, int64_t{1} << 22);
+  const auto paths = DistantLightPaths::Build(scene, **tracer, &lights, settings, batches);
+  ASSERT_NE(paths, nullptr);
+  ASSERT_TRUE(paths->Traces(0));
+  const int64_t kept = paths->KeptCount(0), traced = paths->PathCount(0);
+  std::printf(
+      "[measured] 2^24 samples: %lld light paths traced, %lld kept (lambda %d, kept %.3f)\n",
+      (long long)traced, (long long)kept, paths->Lambda(0), paths->KeptFraction(0));
+  // n_L per batch is ceil(kMaxKeptPaths / (4 f)), far below lambda n_b.
+  EXPECT_LE(traced, 4 * int64_t(std::ceil(double(DistantLightPaths::kMaxKeptPaths) /
+                                          (4 * paths->KeptFraction(0)))));
+  EXPECT_LT(traced, int64_t(paths->Lambda(0)) * (int64_t{1} << 24) / 16);
+  EXPECT_LE(double(kept), 1.1 * double(DistantLightPaths::kMaxKeptPaths));
+  EXPECT_GE(double(kept), 0.9 * double(DistantLightPaths::kMaxKeptPaths));
+}
+
+TEST(DistantLightPaths, TraceTheBrightestDirectionalLightsOnly) {
+  // Ten suns of irradiance 1 to 10: the kMaxSources brightest are traced, the others left to the
+  // probes' paths (their weights untouched).
+  Scene scene = OpenFloor();
+  for (int i = 0; i < 10; ++i) {
+    const double e = 1 + ((i * 7) % 10);  // 1..10, not in order
+    scene.lights.push_back(DirectionalLight{Normalize(Vec3d{0.1 * i, 0.2, -1}), {e, e, e}, 1.0});
+  }
+  auto tracer = TracerScene::Build(scene, LocalOrigin(scene));
+  ASSERT_TRUE(tracer.ok()) << tracer.status();
+  LightSet lights(scene, **tracer);
+  BakeSettings settings;
+  const std::vector<int64_t> batches(4, 64);
+  const auto paths = DistantLightPaths::Build(scene, **tracer, &lights, settings, batches);
+  ASSERT_NE(paths, nullptr);
+  int traced = 0;
+  for (uint32_t i = 0; i < 10; ++i) {
+    const double e = 1 + ((i * 7) % 10);
+    EXPECT_EQ(paths->Traces(i), e > 10 - double(DistantLightPaths::kMaxSources)) << i;
+    traced += paths->Traces(i);
+  }
+  EXPECT_EQ(traced, int(DistantLightPaths::kMaxSources));
 }
 
 }  // namespace

@@ -69,18 +69,31 @@ std::unique_ptr<DistantLightPaths> DistantLightPaths::Build(const Scene& scene,
   d.batchSizes_.assign(batchSizes.begin(), batchSizes.end());
   d.sourceOfLight_.assign(lights->Count(), -1);
 
+  // The brightest kMaxSources directional lights (ties by index), the others left to the probes'
+  // paths alone.
+  std::vector<uint32_t> candidates;
   for (size_t i = 0; i < scene.lights.size(); ++i) {
     const auto* light = std::get_if<DirectionalLight>(&scene.lights[i]);
-    if (!light || !(Luminance(light->irradiance) > 0)) continue;
+    if (light && Luminance(light->irradiance) > 0) candidates.push_back(uint32_t(i));
+  }
+  const auto brightness = [&](uint32_t i) {
+    return Luminance(std::get<DirectionalLight>(scene.lights[i]).irradiance);
+  };
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [&](uint32_t a, uint32_t b) { return brightness(a) > brightness(b); });
+  if (candidates.size() > kMaxSources) candidates.resize(kMaxSources);
+  std::sort(candidates.begin(), candidates.end());
+  for (uint32_t i : candidates) {
+    const DirectionalLight& light = std::get<DirectionalLight>(scene.lights[i]);
     Source s;
-    s.light = uint32_t(i);
-    s.toLight = -light->direction;
+    s.light = i;
+    s.toLight = -light.direction;
     s.frame = Framed::FromZ(s.toLight);
-    s.cosOuter = light->cosHalfAngle;
-    s.delta = !(light->cosHalfAngle < 1);
+    s.cosOuter = light.cosHalfAngle;
+    s.delta = !(light.cosHalfAngle < 1);
     // Radiance irradiance / (pi sin^2) over a cone of 2 pi (1 - cos): irradiance 2 / (1 + cos).
     s.conePdf = s.delta ? 1.0 : UniformConePdf(s.cosOuter);
-    s.power = light->irradiance * (s.delta ? 1.0 : 2 / (1 + s.cosOuter)) * d.diskArea_;
+    s.power = light.irradiance * (s.delta ? 1.0 : 2 / (1 + s.cosOuter)) * d.diskArea_;
     int kept = 0;
     for (int k = 0; k < kPilotPaths; ++k)
       kept += d.TracePath(s, Hash(kLightPathTag, s.light, kPilotBatch), uint64_t(k), nullptr);
@@ -98,11 +111,21 @@ std::unique_ptr<DistantLightPaths> DistantLightPaths::Build(const Scene& scene,
   const size_t batches = d.batchSizes_.size();
   d.paths_.resize(d.sources_.size() * batches);
   d.firsts_.resize(d.paths_.size());
+  // lambda n_b paths a batch, but no more than about kMaxKeptPaths kept over all of a light's
+  // batches: a bake of millions of samples per probe joins fewer paths per sample instead of
+  // holding (and tracing) millions of them.
+  d.pathCounts_.resize(d.paths_.size());
+  for (size_t job = 0; job < d.paths_.size(); ++job) {
+    const Source& s = d.sources_[job / batches];
+    const int64_t cap = std::max<int64_t>(
+        1, int64_t(std::ceil(double(kMaxKeptPaths) / (double(batches) * s.keptFraction))));
+    d.pathCounts_[job] = std::min(int64_t(s.lambda) * d.batchSizes_[job % batches], cap);
+  }
   tbb::parallel_for(size_t{0}, d.paths_.size(), [&](size_t job) {
     const Source& s = d.sources_[job / batches];
     const size_t b = job % batches;
     const uint64_t stream = Hash(kLightPathTag, s.light, uint64_t(b));
-    const int64_t n = int64_t(s.lambda) * d.batchSizes_[b];
+    const int64_t n = d.pathCounts_[job];
     std::vector<Vertex>& out = d.paths_[job];
     std::vector<uint32_t>& firsts = d.firsts_[job];
     for (int64_t i = 0; i < n; ++i) {
@@ -209,7 +232,8 @@ double DistantLightPaths::OtherDensitySquared(uint32_t light, const Vec3d& x, co
   const double cosK = Dot(toLight, n);
   if (!(cosK > 0) || !Keeps(x, n)) return 0;
   const double a = cosK * s.conePdf / diskArea_;
-  const double q = s.lambda * a / d1;
+  PB_DCHECK_LT(size_t(batch), batchSizes_.size());
+  const double q = Ratio(size_t(sourceOfLight_[light]), batch) * a / d1;
   double c = 0;
   if (xPrev && nPrev) {
     const Vec3d v = x - *xPrev;
@@ -227,7 +251,6 @@ Vec3d DistantLightPaths::ConnectVertex(const Vec3d& x, const Vec3d& n, const Vec
   Vec3d sum;
   if (size_t(batch) >= batches || !(d1 > 0)) return sum;
   for (size_t si = 0; si < sources_.size(); ++si) {
-    const Source& s = sources_[si];
     const std::vector<uint32_t>& firsts = firsts_[si * batches + batch];
     if (firsts.empty()) continue;
     const size_t kept = firsts.size();
@@ -240,9 +263,9 @@ Vec3d DistantLightPaths::ConnectVertex(const Vec3d& x, const Vec3d& n, const Vec
     if (!(cosX > 0) || !(cosY > 0)) continue;
     const double geometry = cosX * cosY / (r2 * r2);  // G, the cosines over r^2
     const double g = geometry * kInvPi;
-    const double c = y.a * Boost(si, batch) / g, q = s.lambda * y.a / d1;
+    const double c = y.a * Boost(si, batch) / g, q = Ratio(si, batch) * y.a / d1;
     const double w = c * c / (y.pN * y.pN + y.pB * y.pB + q * q + c * c);
-    const double paths = double(int64_t(s.lambda) * batchSizes_[batch]);
+    const double paths = double(pathCounts_[si * batches + batch]);
     const Vec3d value = y.weight * (geometry * w * double(kept) / paths);
     if (!(MaxComponent(value) > 0)) continue;
     const Vec3d to = Vec3d(y.spawn) - Vec3d(spawn);
@@ -264,8 +287,7 @@ void DistantLightPaths::ConnectProbe(const Vec3d& p, uint32_t batch, int64_t cou
   double y[kMaxShCoeffCount];
   const int coeffs = ShCoeffCount(order);
   for (size_t si = 0; si < sources_.size(); ++si) {
-    const Source& s = sources_[si];
-    const double lambda = s.lambda;
+    const double ratio = Ratio(si, batch);  // light paths per probe sample
     const double boost = Boost(si, batch);
     for (const Vertex& v : paths_[si * batches + batch]) {
       const Vec3d toProbe = p - v.x;
@@ -275,10 +297,10 @@ void DistantLightPaths::ConnectProbe(const Vec3d& p, uint32_t batch, int64_t cou
       const double cosY = Dot(v.n, toProbe) / r;
       if (!(cosY > 0)) continue;
       const double d1 = cosY / (4 * std::numbers::pi * r2);
-      const double light = lambda * v.a;
+      const double light = ratio * v.a;
       const double pN = d1 * v.pN, pB = d1 * v.pB, c = d1 * v.c * boost;
       const double w = light * light / (light * light + pN * pN + pB * pB + c * c);
-      const Vec3d value = v.weight * (cosY / r2 * w / lambda);
+      const Vec3d value = v.weight * (cosY / r2 * w / ratio);
       if (!(MaxComponent(value) > 0)) continue;
       // From the vertex's ray origin (off its surface, on the probe's side) to the probe. Traced
       // one at a time: 8-wide packets from the probe toward the vertices, whose directions
@@ -304,15 +326,36 @@ double DistantLightPaths::Boost(size_t source, uint32_t batch) const {
   if (size_t(batch) >= batches) return 0;
   const size_t kept = firsts_[source * batches + batch].size();
   if (kept == 0) return 0;
-  return double(int64_t(sources_[source].lambda) * batchSizes_[batch]) / double(kept);
+  return double(pathCounts_[source * batches + batch]) / double(kept);
 }
 
 double DistantLightPaths::KeptFraction(uint32_t light) const {
   return Traces(light) ? sources_[size_t(sourceOfLight_[light])].keptFraction : 0;
 }
 
+double DistantLightPaths::Ratio(size_t source, uint32_t batch) const {
+  const size_t job = source * batchSizes_.size() + batch;
+  return double(pathCounts_[job]) / double(batchSizes_[batch]);
+}
+
 int DistantLightPaths::Lambda(uint32_t light) const {
   return Traces(light) ? sources_[size_t(sourceOfLight_[light])].lambda : 0;
+}
+
+int64_t DistantLightPaths::PathCount(uint32_t light) const {
+  if (!Traces(light)) return 0;
+  const size_t source = size_t(sourceOfLight_[light]), batches = batchSizes_.size();
+  int64_t n = 0;
+  for (size_t b = 0; b < batches; ++b) n += pathCounts_[source * batches + b];
+  return n;
+}
+
+int64_t DistantLightPaths::KeptCount(uint32_t light) const {
+  if (!Traces(light)) return 0;
+  const size_t source = size_t(sourceOfLight_[light]), batches = batchSizes_.size();
+  int64_t n = 0;
+  for (size_t b = 0; b < batches; ++b) n += int64_t(firsts_[source * batches + b].size());
+  return n;
 }
 
 int64_t DistantLightPaths::VertexCount() const {

@@ -7,8 +7,8 @@
 // their next-event samples of the sun are wasted wherever it is hidden. Paths traced from the sun
 // find the sunlit points by construction.
 //
-// Light paths. Per directional light and per batch b, n_L = lambda n_b of them (n_b the batch's
-// probe samples, lambda an integer fixed per light, below): a direction w_s toward the light
+// Light paths. Per directional light and per batch b, n_L of them, rho = n_L / n_b per probe
+// sample (n_b the batch's probe samples; below): a direction w_s toward the light
 // (uniform in the sun's cone; the direction itself for a delta light) and a point on a disk of
 // area A perpendicular to it that covers the scene's bounds, traced into the scene. The first
 // hit y_1 is kept only if it lies in the scene's bounds on a side that faces into them (a roof's
@@ -24,7 +24,7 @@
 //      times its solid-angle pdf; the choice alone for a delta light);
 //   B  its continuation from x_k hitting the sun's cone: p_B = cos_k / pi (none for a delta);
 //   L  a light path's m-th vertex (y_m = x_1, m = k) joined to the probe by a shadow ray:
-//      lambda a / d_1, a = cos_k(w_s) / (Omega A), d_1 = cos_1 / (4 pi r_1^2) the density at x_1
+//      rho a / d_1, a = cos_k(w_s) / (Omega A), d_1 = cos_1 / (4 pi r_1^2) the density at x_1
 //      of the probe's uniform direction;
 //   C  a probe path's surface vertex x_{k-1} (k >= 2) joined by a shadow ray to the first hit
 //      x_k = y_1 of one light path of its batch, picked uniformly among the K kept ones:
@@ -32,13 +32,16 @@
 // Each technique's sample counts with its density squared over the sum of the squares, so every
 // path is counted once; a technique that cannot make a path (x_k not kept, k = 1 for C) has
 // density zero there. L adds to coefficient i, for w = (x_1 - p) / r,
-//   w_L Phi prod_{j<m} albedo_j (albedo_m / pi) cos_m / r^2 Y_i(w) / lambda
+//   w_L Phi prod_{j<m} albedo_j (albedo_m / pi) cos_m / r^2 Y_i(w) / rho
 // per light path (a probe's sum is divided by n_b), and C adds to the path's radiance at x_{k-1}
 //   w_C beta (albedo_{k-1} / pi) (Phi albedo_k / pi) cos_{k-1} cos_k / r^2 K / n_L.
 //
-// lambda: a pilot of kPilotPaths paths per light finds the fraction f of first hits kept; lambda
-// = ceil(kKeptPerSample / f), at most kMaxLambda, so that a probe joins about kKeptPerSample
-// light paths per sample of its own whatever the share of the sun's rays that enter.
+// n_L: a pilot of kPilotPaths paths per light finds the fraction f of first hits kept; n_L =
+// lambda n_b with lambda = ceil(kKeptPerSample / f), at most kMaxLambda, so that a probe joins
+// about kKeptPerSample light paths per sample of its own whatever the share of the sun's rays that
+// enter; but no more than kMaxKeptPaths / (f x batches), so that a bake of millions of samples per
+// probe joins fewer per sample (rho < lambda) rather than hold and trace millions of paths. Only
+// the kMaxSources brightest directional lights are traced.
 //
 // The light's share of next-event samples at surfaces is scaled by min(1, kSurfaceShare f)
 // (LightSet::ScaleAtSurfaces; at the probe it is left alone). Where little of the sun's beam
@@ -114,10 +117,18 @@ class DistantLightPaths {
   int Lambda(uint32_t light) const;
   double KeptFraction(uint32_t light) const;
   int64_t VertexCount() const;
+  // Light paths traced and kept (first hit kept, with a vertex) over all batches of `light`.
+  int64_t PathCount(uint32_t light) const;
+  int64_t KeptCount(uint32_t light) const;
 
   static constexpr int kPilotPaths = 4096;
   static constexpr double kKeptPerSample = 0.5;
   static constexpr int kMaxLambda = 64;
+  // Kept light paths of one light over all batches, about, at most (n_L is capped per batch):
+  // a few hundred bytes each, so at most ~100 MB a light.
+  static constexpr int64_t kMaxKeptPaths = int64_t{1} << 18;
+  // Directional lights traced, the brightest (irradiance luminance).
+  static constexpr size_t kMaxSources = 8;
   static constexpr double kSurfaceShare = 4;
 
  private:
@@ -145,6 +156,8 @@ class DistantLightPaths {
 
   DistantLightPaths(const Scene& scene, const TracerScene& tracer, const LightSet& lights,
                     const BakeSettings& settings);
+  // n_L / n_b of (source, batch): light paths per probe sample.
+  double Ratio(size_t source, uint32_t batch) const;
   // n_L / K of (source, batch): how much denser the kept first hits are than the light paths.
   double Boost(size_t source, uint32_t batch) const;
   // Whether a first hit at x (normal n toward the light) is kept.
@@ -164,6 +177,7 @@ class DistantLightPaths {
   std::vector<Source> sources_;
   std::vector<int> sourceOfLight_;          // by light index: into sources_, or -1
   std::vector<std::vector<Vertex>> paths_;  // [source * batches + batch]
+  std::vector<int64_t> pathCounts_;         // n_L, likewise
   // The first hits among them, by index into paths_[...], in path order.
   std::vector<std::vector<uint32_t>> firsts_;
   std::vector<int64_t> batchSizes_;
