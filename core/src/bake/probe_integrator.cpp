@@ -754,8 +754,10 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
       const auto here = [&] { return std::span<double>(importanceHere + j * size, size); };
       if (bounce == 1) {
         s.firstHit = g->found[k] ? hit.t : kInf;
-        s.d1 = g->found[k] && hit.t > 0 ? std::fabs(Dot(s.wi, hit.ng)) * probe.pdf / (hit.t * hit.t)
-                                        : 0.0;
+        if (lightPaths_)
+          s.d1 = g->found[k] && hit.t > 0
+                     ? std::fabs(Dot(s.wi, hit.ng)) * probe.pdf / (hit.t * hit.t)
+                     : 0.0;
       }
       bool scattered = false;
       VertexNumbers drawn;  // with a medium: the vertex's numbers, drawn once it is found
@@ -829,9 +831,11 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
       s.wi = v.wi;
       s.pdfDir = v.pdfDir;
       if constexpr (kMedium) s.origin = v.spawn;
-      s.pBefore = s.pPrev;
-      s.nBefore = s.nPrev;
-      s.hasBefore = s.hasNormal;
+      if (lightPaths_) {  // read by light tracing's weights alone
+        s.pBefore = s.pPrev;
+        s.nBefore = s.nPrev;
+        s.hasBefore = s.hasNormal;
+      }
       s.pPrev = scattered ? v.x : hit.p;
       s.nPrev = v.n;
       s.hasNormal = !scattered;
@@ -918,13 +922,15 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
   if (!found) {
     if (countEmission_) {
       lights_.ForEachEscaped(nPrev, importancePrev, totalPrev, wi, [&](const LightHit& h) {
-        double w = mis_ ? PowerHeuristic(pdfDir, h.pdf) : 1.0;
-        // A sun's cone found from a surface: light tracing makes the same path too.
+        double w = 1.0;
         if (lightPaths_ && nPrev && lightPaths_->Traces(h.light)) {
+          // A sun's cone found from a surface: light tracing makes the same path too.
           const double other =
               lightPaths_->OtherDensitySquared(h.light, pPrev, *nPrev, wi, context.d1,
                                                context.xBefore, context.nBefore, context.batch);
           w = pdfDir * pdfDir / (pdfDir * pdfDir + h.pdf * h.pdf + other);
+        } else if (mis_) {
+          w = PowerHeuristic(pdfDir, h.pdf);
         }
         *radiance += beta * h.radiance * w;
       });
@@ -967,8 +973,6 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
       const double pdfBsdf = cosTheta * kInvPi;
       v->lightSampled = true;
       v->neeBase = *beta * albedo * v->ls.radiance;
-      v->neeScale = pdfBsdf * ((mis_ && !v->ls.delta) ? PowerHeuristicOverPdf(v->ls.pdf, pdfBsdf)
-                                                      : 1 / v->ls.pdf);
       if (lightPaths_ && lightPaths_->Traces(v->ls.light)) {
         // A directional light: light tracing makes the same path too (distant_light_paths.h).
         const double other =
@@ -976,6 +980,9 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
                                              context.xPrev, context.nPrev, context.batch);
         const double pdf = v->ls.pdf, bsdf = v->ls.delta ? 0.0 : pdfBsdf;
         v->neeScale = pdfBsdf * pdf / (pdf * pdf + bsdf * bsdf + other);
+      } else {
+        v->neeScale = pdfBsdf * ((mis_ && !v->ls.delta) ? PowerHeuristicOverPdf(v->ls.pdf, pdfBsdf)
+                                                        : 1 / v->ls.pdf);
       }
     }
   }
