@@ -21,6 +21,7 @@
 #include <functional>
 #include <vector>
 
+#include "cell_grid.h"
 #include "probebake/math/vec3.h"
 
 namespace probebake {
@@ -63,30 +64,17 @@ class LightVisibility {
   // is left as it is.
   const float* At(const Vec3d& p) const {
     if (factors_.empty()) return nullptr;
-    int64_t cell = 0;
-    for (int a = 2; a >= 0; --a) {
-      const double x = (p[a] - lo_[a]) * inverseSize_[a];
-      if (!(x >= 0 && x < dims_[a])) {
-        // On the far face: the last cell (a flat box's single layer holds exactly its plane).
-        if (x == dims_[a]) {
-          cell = cell * dims_[a] + (dims_[a] - 1);
-          continue;
-        }
-        return nullptr;
-      }
-      cell = cell * dims_[a] + int64_t(x);
-    }
-    return factors_.data() + cell * int64_t(entries_);
+    const int64_t cell = grid_.CellOf(p);
+    return cell < 0 ? nullptr : factors_.data() + cell * int64_t(entries_);
   }
 
   // The rays Build traced, for the bake's count.
   int64_t rays() const { return rays_; }
   // Cells per axis (0 when the table is empty).
-  int dims(int axis) const { return dims_[axis]; }
+  int dims(int axis) const { return grid_.dims[axis]; }
 
  private:
-  Vec3d lo_, inverseSize_;  // cells per unit length along each axis
-  int dims_[3] = {0, 0, 0};
+  CellGrid grid_;
   size_t entries_ = 0;
   std::vector<float> factors_;  // cell-major: cell * entries + entry
   int64_t rays_ = 0;
