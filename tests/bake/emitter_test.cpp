@@ -162,7 +162,7 @@ void ExpectSamplesMatchTheirRays(const LoneLight& lone) {
       EXPECT_NEAR(h.pdf, s.pdf, (1e-5 + grazing) * s.pdf) << i;
     } else {
       ASSERT_EQ(light.family(), EmitterFamily::kDistant);
-      ASSERT_TRUE(light.EvalEscaped(s.wi, sp.n(), /*pmf=*/1, &h)) << i;
+      ASSERT_TRUE(light.EvalEscaped(sp.p, s.wi, sp.n(), /*pmf=*/1, &h)) << i;
       EXPECT_NEAR(h.pdf, s.pdf, 1e-12 * s.pdf) << i;
     }
     EXPECT_EQ(h.radiance, s.radiance) << i;
@@ -322,7 +322,7 @@ TEST(Emitter, TheSunsDiskGivesItsIrradianceToAFacingSurface) {
   EXPECT_NEAR(irradiance.y, 2, 1e-5);
   EXPECT_NEAR(irradiance.z, 1, 1e-5);
   LightHit h;
-  EXPECT_FALSE(light.EvalEscaped(Normalize(-direction + Vec3d{0.1, 0, 0}), nullptr, 1, &h))
+  EXPECT_FALSE(light.EvalEscaped(Vec3d{}, Normalize(-direction + Vec3d{0.1, 0, 0}), nullptr, 1, &h))
       << "a direction outside the disk";
 }
 

@@ -81,7 +81,7 @@ void ExpectSampledPdfsEqualThePdfsOfTheRaysThatFindTheLights(size_t treeMinLight
     } else {
       ASSERT_FALSE(std::isfinite(s.distance)) << "a finite light sample found nothing";
       double pdf = 0;
-      lights.ForEachEscaped(n, importance, total, s.wi, [&](const LightHit& h) {
+      lights.ForEachEscaped(p, n, importance, total, s.wi, [&](const LightHit& h) {
         if (h.light == s.light) pdf = h.pdf;
       });
       EXPECT_NEAR(pdf, s.pdf, 1e-9 * s.pdf) << "sample " << i << " light " << s.light;

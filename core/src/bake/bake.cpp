@@ -17,6 +17,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "distant_light_paths.h"
+#include "environment_guide.h"
 #include "probe_finish.h"
 #include "probe_integrator.h"
 #include "probe_relocation.h"
@@ -231,7 +232,7 @@ struct TraceableScene {
   std::unique_ptr<ProbeIntegrator> integrator;
   // Light traced from the directional lights, joined to the probes (null: none to trace).
   std::unique_ptr<DistantLightPaths> lightPaths;
-  int64_t visibilityRays = 0;  // traced to build the visibility table
+  int64_t setupRays = 0;  // traced to build the environment guide and the visibility table
 };
 
 // Builds the visibility table of `unweighted` (traced with a temporary integrator over it) and
@@ -250,6 +251,26 @@ std::unique_ptr<LightSet> WithLightVisibility(const BakeJob& job, const TracerSc
   return std::make_unique<LightSet>(std::move(unweighted), std::move(visibility));
 }
 
+// Samples the environment of `lights` (when it has one) through a guide of where it reaches each
+// region of the scene (environment_guide.h), traced with a temporary integrator over *lights.
+// Returns the rays it traced.
+int64_t AddEnvironmentGuide(const BakeJob& job, const TracerScene& tracer, LightSet* lights) {
+  if (!lights->environment() || lights->environment()->IsBlack()) return 0;
+  const auto start = Clock::now();
+  auto guide = std::make_unique<EnvironmentGuide>(EnvironmentGuide::Build(
+      tracer, *lights->environment(), ProbeIntegrator(job.scene, tracer, *lights, job.settings)));
+  if (guide->dims(0) > 0) {
+    Logger("bake")->info(
+        "environment guide: {:.3f} of the sky arrives, {} x {} x {} cells, {} guided, {} rays, "
+        "{:.3f} s",
+        guide->OpenFraction(), guide->dims(0), guide->dims(1), guide->dims(2), guide->GuidedCells(),
+        guide->rays(), Seconds(start));
+  }
+  const int64_t rays = guide->rays();
+  lights->SetEnvironmentGuide(std::move(guide));
+  return rays;
+}
+
 absl::StatusOr<TraceableScene> TraceableScene::Build(const BakeJob& job,
                                                      const BakeOptions& options) {
   TraceableScene s;
@@ -260,9 +281,14 @@ absl::StatusOr<TraceableScene> TraceableScene::Build(const BakeJob& job,
   LightSet unweighted(job.scene, *s.tracer, kLightTreeMinLights,
                       /*environment=*/job.settings.skyTransferOrder == 0);
   // Where geometry can hide lights. The pure direction-sampling estimator never chooses a light.
-  if (options.lightVisibility && job.settings.estimator != Estimator::kDirectionSampling &&
-      !job.scene.meshes.empty()) {
-    s.lights = WithLightVisibility(job, *s.tracer, std::move(unweighted), &s.visibilityRays);
+  const bool samplesLights =
+      job.settings.estimator != Estimator::kDirectionSampling && !job.scene.meshes.empty();
+  if (job.settings.environmentGuide && samplesLights)
+    s.setupRays += AddEnvironmentGuide(job, *s.tracer, &unweighted);
+  if (options.lightVisibility && samplesLights) {
+    int64_t rays = 0;
+    s.lights = WithLightVisibility(job, *s.tracer, std::move(unweighted), &rays);
+    s.setupRays += rays;
   } else {
     s.lights = std::make_unique<LightSet>(std::move(unweighted));
   }
@@ -700,7 +726,7 @@ absl::StatusOr<ProbeVolume> BakeInArena(const BakeJob& job, const BakeOptions& o
             std::count(volume.validity.begin(), volume.validity.end(), 0.0f), Seconds(start));
 
   SharedCounters counters;
-  counters.rays.fetch_add(placementRays + scene.visibilityRays, std::memory_order_relaxed);
+  counters.rays.fetch_add(placementRays + scene.setupRays, std::memory_order_relaxed);
   Reporter reporter(options, counters, list.Active(), list.resumed, start, volume, done);
   const BakeRun run = BakeProbes(job, options, scene, sites, finisher, list.todo, &counters,
                                  &reporter, &volume, &done);

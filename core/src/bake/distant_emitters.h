@@ -12,6 +12,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "environment_guide.h"
 #include "environment_light.h"
 #include "light_sample.h"
 #include "light_tree.h"
@@ -87,8 +88,9 @@ class SunEmitter {
     return true;
   }
 
-  // A ray along wi escaped the scene; pmf: the probability of choosing this light.
-  bool EvalEscaped(const Vec3d& wi, const Vec3d* /*n*/, double pmf, LightHit* out) const {
+  // A ray from p along wi escaped the scene; pmf: the probability of choosing this light.
+  bool EvalEscaped(const Vec3d& /*p*/, const Vec3d& wi, const Vec3d* /*n*/, double pmf,
+                   LightHit* out) const {
     if (Dot(wi, toLight_) < cosOuter_) return false;
     out->radiance = radiance_;
     out->pdf = pmf / (2 * std::numbers::pi * oneMinusCos_);
@@ -108,6 +110,12 @@ class SunEmitter {
 };
 
 // The environment (environment_light.h) as one of a scene's lights. Does not own it.
+//
+// With a guide (environment_guide.h), at a surface point p (n given) whose cell has alpha > 0 a
+// direction is drawn from the guide with probability alpha and from the environment's own
+// distribution otherwise, and every pdf there (Sample's, EvalEscaped's) is the mixture's,
+// alpha p_g + (1 - alpha) p_e. Elsewhere (probes, media, unguided cells) sampling is the
+// environment's alone, bit for bit.
 class EnvironmentEmitter {
  public:
   static constexpr EmitterFamily kFamily = EmitterFamily::kDistant;
@@ -116,20 +124,43 @@ class EnvironmentEmitter {
   explicit EnvironmentEmitter(const EnvironmentLight& environment)
       : environment_(&environment), power_(environment.Importance()) {}
 
+  // Samples from now on through `guide` (null: none), which outlives this.
+  void SetGuide(const EnvironmentGuide* guide) { guide_ = guide; }
+
   double power() const { return power_; }
 
   double Importance(const Vec3d& /*p*/, const Vec3d* /*n*/) const { return power_; }
 
-  bool Sample(const Vec3d& /*p*/, const Vec3d* n, const Vec2d& u, LightSample* s) const {
-    s->radiance = environment_->Sample(u, n, &s->wi, &s->pdf);
+  bool Sample(const Vec3d& p, const Vec3d* n, const Vec2d& u, LightSample* s) const {
     s->distance = std::numeric_limits<double>::infinity();
+    int32_t cell;
+    const double alpha = guide_ && n ? guide_->Alpha(p, &cell) : 0.0;
+    if (alpha > 0) {
+      double pdf;
+      if (u.x < alpha) {
+        s->wi = guide_->Sample(cell, {std::min(u.x / alpha, kOneMinusEpsilon), u.y});
+        if (n && Dot(*n, s->wi) <= 0) return false;  // no light arrives from below the surface
+        s->radiance = environment_->RadianceAndPdf(s->wi, n, &pdf);
+      } else {
+        const double ux = std::min((u.x - alpha) / (1 - alpha), kOneMinusEpsilon);
+        s->radiance = environment_->Sample({ux, u.y}, n, &s->wi, &pdf);
+        if (!(pdf > 0)) return false;
+      }
+      s->pdf = alpha * guide_->Pdf(cell, s->wi) + (1 - alpha) * pdf;
+      return s->pdf > 0 && MaxComponent(s->radiance) > 0;
+    }
+    s->radiance = environment_->Sample(u, n, &s->wi, &s->pdf);
     return s->pdf > 0 && MaxComponent(s->radiance) > 0;
   }
 
-  bool EvalEscaped(const Vec3d& wi, const Vec3d* n, double pmf, LightHit* out) const {
+  bool EvalEscaped(const Vec3d& p, const Vec3d& wi, const Vec3d* n, double pmf,
+                   LightHit* out) const {
     double pdf;
     out->radiance = environment_->RadianceAndPdf(wi, n, &pdf);
     if (MaxComponent(out->radiance) <= 0) return false;
+    int32_t cell;
+    const double alpha = guide_ && n ? guide_->Alpha(p, &cell) : 0.0;
+    if (alpha > 0) pdf = alpha * guide_->Pdf(cell, wi) + (1 - alpha) * pdf;
     out->pdf = pmf * pdf;
     return true;
   }
@@ -138,6 +169,7 @@ class EnvironmentEmitter {
 
  private:
   const EnvironmentLight* environment_;
+  const EnvironmentGuide* guide_ = nullptr;
   double power_;
 };
 

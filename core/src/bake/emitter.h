@@ -15,7 +15,8 @@
 //                       (delta kinds have EvalDelta(p, s) instead: their one direction, pdf 1)
 //   EvalHit(p, wi, hit, pmf, out)   kSurface: a ray from p along wi hit it; its radiance toward
 //                       p and pmf x the pdf Sample would have had for wi (false: the back side)
-//   EvalEscaped(wi, n, pmf, out)    kDistant: the same for a ray along wi that left the scene
+//   EvalEscaped(p, wi, n, pmf, out) kDistant: the same for a ray from p along wi that left the
+//                       scene
 //   TreeItem(item)      its bounds, weight and emission cone for a light tree (light_tree.h);
 //                       false for lights at infinity, which stay in the linear choice
 // A kind's Sample, EvalHit and EvalEscaped agree: the pdf the last two report for a direction
@@ -67,7 +68,7 @@ concept SurfaceEmitter = requires(const T& e, const Vec3d& p, const SurfaceHit& 
 };
 template <typename T>
 concept DistantEmitter = requires(const T& e, const Vec3d& wi, const Vec3d* n, LightHit* out) {
-  { e.EvalEscaped(wi, n, 1.0, out) } -> std::same_as<bool>;
+  { e.EvalEscaped(wi, wi, n, 1.0, out) } -> std::same_as<bool>;
 };
 
 // Whether T has its family's evaluations: EvalDelta, or Sample and EvalHit or EvalEscaped.
@@ -144,10 +145,11 @@ class Emitter {
   }
 
   // Precondition: family() == kDistant.
-  bool EvalEscaped(const Vec3d& wi, const Vec3d* n, double pmf, LightHit* out) const {
+  bool EvalEscaped(const Vec3d& p, const Vec3d& wi, const Vec3d* n, double pmf,
+                   LightHit* out) const {
     return Visit([&]<typename K>(const K& k) {
       if constexpr (K::kFamily == EmitterFamily::kDistant) {
-        return k.EvalEscaped(wi, n, pmf, out);
+        return k.EvalEscaped(p, wi, n, pmf, out);
       } else {
         PB_CHECK(false);
         return false;
@@ -157,6 +159,12 @@ class Emitter {
 
   bool TreeItem(LightTree::Item* item) const {
     return Visit([&](const auto& k) { return k.TreeItem(item); });
+  }
+
+  // The kind K held, or null.
+  template <EmitterKind K>
+  K* get_if() {
+    return std::get_if<K>(&kind_);
   }
 
  private:

@@ -140,6 +140,15 @@ double LightSet::Importance(const Vec3d& p, const Vec3d* n, bool includeDelta,
   return total;
 }
 
+void LightSet::SetEnvironmentGuide(std::unique_ptr<EnvironmentGuide> guide) {
+  environmentGuide_ = std::move(guide);
+  if (environment_->IsBlack()) return;
+  // The environment is the last light (the constructor).
+  EnvironmentEmitter* emitter = lights_.back().get_if<EnvironmentEmitter>();
+  PB_CHECK(emitter != nullptr);
+  emitter->SetGuide(environmentGuide_.get());
+}
+
 void LightSet::ScaleAtSurfaces(uint32_t light, double factor) {
   PB_CHECK_LT(size_t(light), lights_.size());
   const uint32_t slot = slotOfLight_[light];

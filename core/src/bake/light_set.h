@@ -32,6 +32,7 @@
 #include <vector>
 
 #include "emitter.h"
+#include "environment_guide.h"
 #include "environment_light.h"
 #include "light_sample.h"
 #include "light_tree.h"
@@ -61,6 +62,11 @@ class LightSet {
   // empty one.
   LightSet(LightSet&& lights, LightVisibility visibility);
   LightSet(LightSet&&) = default;
+
+  // Samples the environment from now on through `guide` (environment_guide.h; built over this
+  // scene), which the set then owns. No effect when the set has no environment. Not thread-safe:
+  // call before sampling.
+  void SetEnvironmentGuide(std::unique_ptr<EnvironmentGuide> guide);
 
   // Multiplies the importance of `light` (one of the linear choice, not in a light tree) at
   // surface points (n given) by factor > 0 from now on; at probes and in a medium it is left
@@ -122,8 +128,8 @@ class LightSet {
   // A ray from p along wi escaped the scene: adds every distant light's radiance from wi, each
   // with its own NEE pdf, through `visit(const LightHit&)`.
   template <typename Visit>
-  void ForEachEscaped(const Vec3d* n, std::span<const double> importance, double total,
-                      const Vec3d& wi, Visit&& visit) const;
+  void ForEachEscaped(const Vec3d& p, const Vec3d* n, std::span<const double> importance,
+                      double total, const Vec3d& wi, Visit&& visit) const;
 
   // Delta lights (point, spot, zero-size directional), for the probe's exact projection.
   // Radiance weight and direction of delta light `light` at p: false if it cannot reach p.
@@ -149,6 +155,7 @@ class LightSet {
   std::vector<uint32_t> distantLights_;  // suns and the environment
   std::vector<uint32_t> meshLight_;
   std::unique_ptr<EnvironmentLight> environment_;
+  std::unique_ptr<EnvironmentGuide> environmentGuide_;
 
   // The linear choice: each entry is one light or one tree (tree >= 0).
   struct Slot {
@@ -165,13 +172,13 @@ class LightSet {
 };
 
 template <typename Visit>
-void LightSet::ForEachEscaped(const Vec3d* n, std::span<const double> importance, double total,
-                              const Vec3d& wi, Visit&& visit) const {
+void LightSet::ForEachEscaped(const Vec3d& p, const Vec3d* n, std::span<const double> importance,
+                              double total, const Vec3d& wi, Visit&& visit) const {
   for (uint32_t index : distantLights_) {
     LightHit hit;
     hit.light = index;
     const double pmf = total > 0 ? importance[slotOfLight_[index]] / total : 0;
-    if (!lights_[index].EvalEscaped(wi, n, pmf, &hit)) continue;
+    if (!lights_[index].EvalEscaped(p, wi, n, pmf, &hit)) continue;
     if (!(total > 0)) hit.pdf = 0;  // NEE chooses nothing there, whatever the light's pdf
     visit(hit);
   }

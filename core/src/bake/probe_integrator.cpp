@@ -921,7 +921,7 @@ void ProbeIntegrator::AddToSums(const Probe& probe, const Group<kWidth>& g,
     const LightPathContext& context, const Vec3d& beta, Vec3d* radiance, Vec3d* albedoHere) const {
   if (!found) {
     if (countEmission_) {
-      lights_.ForEachEscaped(nPrev, importancePrev, totalPrev, wi, [&](const LightHit& h) {
+      lights_.ForEachEscaped(pPrev, nPrev, importancePrev, totalPrev, wi, [&](const LightHit& h) {
         double w = 1.0;
         if (lightPaths_ && nPrev && lightPaths_->Traces(h.light)) {
           // A sun's cone found from a surface: light tracing makes the same path too.

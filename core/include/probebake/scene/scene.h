@@ -255,6 +255,9 @@ struct BakeSettings {
   // Light traced from directional lights and joined to the probes, weighed against the probes'
   // own paths (core/src/bake/distant_light_paths.h). Not a job field: off only to measure it.
   bool distantLightTracing = true;
+  // The environment's next-event samples drawn partly from a guide of where it reaches each
+  // region (core/src/bake/environment_guide.h). Not a job field: off only to measure it.
+  bool environmentGuide = true;
 };
 
 // A job ready to bake.
