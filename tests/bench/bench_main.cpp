@@ -93,9 +93,10 @@ struct Options {
 struct Config {
   std::string id, label, group;
   v1::BakeSettings settings;  // samples_per_probe unset for ladder configs
-  // Light traced from directional lights (BakeSettings::distantLightTracing, not a job field):
-  // off measures the default before baker version 20, on scenes with a directional light only.
-  bool lightTracing = true;
+  // The default of baker version 19, before light traced from directional lights (20) and the
+  // environment guide and the visibility floor of 1/32 (21): BakeSettings' distantLightTracing
+  // and environmentGuide off and lightVisibilityFloor 1/8, none of them job fields.
+  bool formerDefault = false;
 };
 
 v1::BakeSettings BaseSettings() {
@@ -129,8 +130,9 @@ std::vector<Config> LadderConfigs() {
   add("nee_mis_sobol", "NEE+MIS, Sobol (default)", [](v1::BakeSettings&) {});
   add("nee_mis_sobol_b16", "NEE+MIS, Sobol, 16 batches",
       [](v1::BakeSettings& s) { s.set_batches(16); });
-  add("nee_mis_sobol_no_lt", "NEE+MIS, Sobol, no light tracing", [](v1::BakeSettings&) {});
-  out.back().lightTracing = false;
+  add("nee_mis_sobol_v19", "NEE+MIS, Sobol, the default of baker version 19",
+      [](v1::BakeSettings&) {});
+  out.back().formerDefault = true;
   add("nee_mis_sobol_no_rr", "NEE+MIS, Sobol, no roulette",
       [](v1::BakeSettings& s) { s.set_russian_roulette(false); });
   add("order1", "NEE+MIS, Sobol, order 1", [](v1::BakeSettings& s) { s.set_sh_order(1); });
@@ -576,7 +578,9 @@ absl::Status Run(const Options& opt) {
     auto bake = [&](const Config& config, const v1::BakeSettings& settings,
                     const Reference& reference, const std::string& refName) -> absl::Status {
       job.settings = ResolveSettings(settings);
-      job.settings.distantLightTracing = config.lightTracing;
+      job.settings.distantLightTracing = !config.formerDefault;
+      job.settings.environmentGuide = !config.formerDefault;
+      job.settings.lightVisibilityFloor = config.formerDefault ? 0.125 : 0.0;
       PB_ASSIGN_OR_RETURN(const Timed t, TimedBake(job, 1, repeats));
       BakeRow row = MakeRow(scene, config, job, t, reference, refName);
       log->info(
@@ -590,16 +594,11 @@ absl::Status Run(const Options& opt) {
     };
     const std::string sameName = scene.analytic ? "exact" : "same depth";
     const std::string deepName = scene.analytic ? "exact" : "deep";
-    const bool directional =
-        std::any_of(job.scene.lights.begin(), job.scene.lights.end(),
-                    [](const Light& l) { return std::holds_alternative<DirectionalLight>(l); });
     for (const Config& config : LadderConfigs()) {
-      if (!config.lightTracing && !directional) continue;  // the same bits as the default
       std::vector<int64_t> counts = results.ladder;
-      // With a directional light the default and the default before light tracing go on to 8x
-      // the ladder, so that their times to 2% and 1% are measured, not extrapolated.
-      if (directional && !opt.quick &&
-          (config.id == "nee_mis_sobol" || config.id == "nee_mis_sobol_no_lt")) {
+      // The default and the former default go on to 8x the ladder, so that their times to 2% and
+      // 1% are measured, not extrapolated.
+      if (!opt.quick && (config.id == "nee_mis_sobol" || config.id == "nee_mis_sobol_v19")) {
         for (int64_t spp = 2 * ladderMax; spp <= 8 * ladderMax; spp *= 2) counts.push_back(spp);
       }
       for (int64_t spp : counts) {

@@ -240,8 +240,10 @@ struct TraceableScene {
 std::unique_ptr<LightSet> WithLightVisibility(const BakeJob& job, const TracerScene& tracer,
                                               LightSet unweighted, int64_t* rays) {
   const auto start = Clock::now();
+  const double floor = job.settings.lightVisibilityFloor > 0 ? job.settings.lightVisibilityFloor
+                                                             : LightVisibility::kFloor;
   LightVisibility visibility = LightVisibility::Build(
-      tracer, unweighted, ProbeIntegrator(job.scene, tracer, unweighted, job.settings));
+      tracer, unweighted, ProbeIntegrator(job.scene, tracer, unweighted, job.settings), floor);
   *rays = visibility.rays();
   if (visibility.dims(0) > 0) {
     Logger("bake")->info("light visibility: {} x {} x {} cells, {} entries, {} rays, {:.3f} s",

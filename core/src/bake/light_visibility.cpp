@@ -21,7 +21,7 @@ constexpr uint64_t kVisibilityKey = 0x6c69676874766973;  // "lightvis"
 }  // namespace
 
 LightVisibility LightVisibility::Build(const Vec3d& loIn, const Vec3d& hiIn, size_t entries,
-                                       const Trace& trace) {
+                                       const Trace& trace, double floor) {
   LightVisibility v;
   if (entries < 2) return v;
   v.grid_ = CellGrid::Over(loIn, hiIn, kRayBudget / (int64_t(entries) * kRaysPerCell));
@@ -53,7 +53,7 @@ LightVisibility LightVisibility::Build(const Vec3d& loIn, const Vec3d& hiIn, siz
                           }
                           if (counted > 0) {
                             v.factors_[size_t(cell) * entries + e] =
-                                float(kFloor + (1 - kFloor) * double(arrived) / counted);
+                                float(floor + (1 - floor) * double(arrived) / counted);
                           }
                         }
                       }
@@ -64,15 +64,17 @@ LightVisibility LightVisibility::Build(const Vec3d& loIn, const Vec3d& hiIn, siz
 }
 
 LightVisibility LightVisibility::Build(const TracerScene& tracer, const LightSet& lights,
-                                       const ProbeIntegrator& integrator) {
-  return Build(tracer.boundsMin(), tracer.boundsMax(), lights.ImportanceSize(),
-               [&](size_t entry, const Vec3d& x, const double u[3]) {
-                 LightSample s;
-                 if (!lights.SampleEntry(entry, x, u[0], {u[1], u[2]}, &s)) return -1;
-                 TraceCounters unused;  // Build counts the rays
-                 const Vec3d arrived = integrator.ShadowTransmittance(Vec3f(x), s, &unused);
-                 return MaxComponent(arrived) > 0 ? 1 : 0;
-               });
+                                       const ProbeIntegrator& integrator, double floor) {
+  return Build(
+      tracer.boundsMin(), tracer.boundsMax(), lights.ImportanceSize(),
+      [&](size_t entry, const Vec3d& x, const double u[3]) {
+        LightSample s;
+        if (!lights.SampleEntry(entry, x, u[0], {u[1], u[2]}, &s)) return -1;
+        TraceCounters unused;  // Build counts the rays
+        const Vec3d arrived = integrator.ShadowTransmittance(Vec3f(x), s, &unused);
+        return MaxComponent(arrived) > 0 ? 1 : 0;
+      },
+      floor);
 }
 
 }  // namespace probebake

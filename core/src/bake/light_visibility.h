@@ -52,16 +52,16 @@ class LightVisibility {
   // Factors for `entries` choice entries over the box [lo, hi] (local coordinates; the bounds of
   // the scene's geometry), from `trace`, called from several threads at once. An empty box or
   // fewer than two entries (nothing to weigh against each other) give a table that At() never
-  // matches.
-  static LightVisibility Build(const Vec3d& lo, const Vec3d& hi, size_t entries,
-                               const Trace& trace);
+  // matches. floor: the least factor, in (0, 1].
+  static LightVisibility Build(const Vec3d& lo, const Vec3d& hi, size_t entries, const Trace& trace,
+                               double floor = kFloor);
 
   // The table of a bake: over the tracer's geometry bounds, for `lights`' entries (sampled as
   // LightSet::SampleEntry does), shadow rays traced by `integrator` (its medium attenuates, and
   // counts as arriving unless it blocks all). `lights` is the set without a table; the bake's set
   // is then built from it with this one (LightSet(LightSet&&, LightVisibility)).
   static LightVisibility Build(const TracerScene& tracer, const LightSet& lights,
-                               const ProbeIntegrator& integrator);
+                               const ProbeIntegrator& integrator, double floor = kFloor);
 
   // The factors of p's cell, one per entry (in (0, 1]); nullptr outside the box, where importance
   // is left as it is.

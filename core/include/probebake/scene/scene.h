@@ -258,6 +258,10 @@ struct BakeSettings {
   // The environment's next-event samples drawn partly from a guide of where it reaches each
   // region (core/src/bake/environment_guide.h). Not a job field: off only to measure it.
   bool environmentGuide = true;
+  // When > 0, the least factor of the light-visibility table (core/src/bake/light_visibility.h)
+  // instead of its own. Not a job field: set (to 1/8) only to measure the default before baker
+  // version 21.
+  double lightVisibilityFloor = 0;
 };
 
 // A job ready to bake.
