@@ -129,7 +129,10 @@ class DistantLightPaths {
   static constexpr int64_t kMaxKeptPaths = int64_t{1} << 18;
   // Directional lights traced, the brightest (irradiance luminance).
   static constexpr size_t kMaxSources = 8;
-  static constexpr double kSurfaceShare = 4;
+  // 4 until baker version 22; with the environment guide and the visibility floor of 1/32, 2 cut
+  // the demo room's error by 2% (1 and below by 3%, but would scale a sun lighting half of a
+  // courtyard, where any scaling costs; docs/performance-history.md).
+  static constexpr double kSurfaceShare = 2;
 
  private:
   struct Source {

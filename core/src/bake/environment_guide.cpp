@@ -4,6 +4,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <numbers>
@@ -22,19 +23,27 @@ namespace {
 // The stream key of the guide's rays: fixed, so the guide depends on the scene alone.
 constexpr uint64_t kGuideKey = 0x656e766775696465;  // "envguide"
 
-// The bin of a direction: z = cos theta in kZBins equal bands, phi in kPhiBins.
-struct BinCoords {
-  int z, phi;
-};
+// The inner boundaries of the phi bins of a half turn, as unit vectors (cos a, sin a),
+// a = k 2 pi / kPhiBins for k = 1 .. kPhiBins / 2 - 1.
+constexpr int kHalfTurnBins = EnvironmentGuide::kPhiBins / 2;
+const std::array<Vec2d, kHalfTurnBins - 1> kPhiBoundaries = [] {
+  std::array<Vec2d, kHalfTurnBins - 1> out;
+  for (int k = 1; k < kHalfTurnBins; ++k) {
+    const double a = k * 2 * std::numbers::pi / EnvironmentGuide::kPhiBins;
+    out[size_t(k - 1)] = {std::cos(a), std::sin(a)};
+  }
+  return out;
+}();
 
-BinCoords Coords(const Vec3d& wi) {
-  const int z = std::clamp(int((wi.z + 1) * (0.5 * EnvironmentGuide::kZBins)), 0,
-                           EnvironmentGuide::kZBins - 1);
-  const double phi = std::atan2(wi.y, wi.x);  // [-pi, pi]
-  const int p = std::clamp(
-      int((phi + std::numbers::pi) * (0.5 * std::numbers::inv_pi * EnvironmentGuide::kPhiBins)), 0,
-      EnvironmentGuide::kPhiBins - 1);
-  return {z, p};
+// The phi bin of (x, y): floor((phi + pi) / (2 pi / kPhiBins)), phi its angle in [-pi, pi), by
+// comparisons instead of an arc tangent. In either half turn, phi >= a exactly when the cross
+// product of (cos a, sin a) and (x, y) is >= 0; the lower half is turned by pi first.
+int PhiBin(double x, double y) {
+  const bool upper = y >= 0;
+  const double u = upper ? x : -x, v = upper ? y : -y;
+  int count = 0;
+  for (const Vec2d& c : kPhiBoundaries) count += c.x * v - c.y * u >= 0;
+  return (upper ? kHalfTurnBins : 0) + count;
 }
 
 // One arrived training ray: its bin, f / q (q the density it was drawn from), q, and the
@@ -208,8 +217,8 @@ double CellGuide(const CellGrid& grid, const std::vector<CellRays>& cells, int64
 }  // namespace
 
 int EnvironmentGuide::Bin(const Vec3d& wi) {
-  const BinCoords c = Coords(wi);
-  return c.z * kPhiBins + c.phi;
+  const int z = std::clamp(int((wi.z + 1) * (0.5 * kZBins)), 0, kZBins - 1);
+  return z * kPhiBins + PhiBin(wi.x, wi.y);
 }
 
 Vec3d EnvironmentGuide::Sample(int32_t cell, const Vec2d& u) const {
