@@ -221,6 +221,28 @@ absl::StatusOr<Timed> TimedBake(const BakeJob& job, int threads, int repeats) {
   return t;
 }
 
+// Bakes `a` and `b` in turn, `repeats` times each (a, b, a, b, ...) on one thread; the minimum
+// CPU and wall time of each. For two configurations whose times are compared: this machine's
+// load drifts over minutes, and a ladder of one after the other's would carry the drift into
+// their ratio.
+absl::StatusOr<std::pair<Timed, Timed>> TimedPair(const BakeJob& a, const BakeJob& b, int repeats) {
+  std::pair<Timed, Timed> t;
+  for (int r = 0; r < repeats; ++r) {
+    PB_ASSIGN_OR_RETURN(Timed ta, TimedBake(a, 1, 1));
+    PB_ASSIGN_OR_RETURN(Timed tb, TimedBake(b, 1, 1));
+    if (r == 0) {
+      t = {std::move(ta), std::move(tb)};
+      continue;
+    }
+    for (auto [kept, now] : {std::pair{&t.first, &ta}, std::pair{&t.second, &tb}}) {
+      kept->wall = std::min(kept->wall, now->wall);
+      kept->cpu = std::min(kept->cpu, now->cpu);
+      kept->identical = kept->identical && SameBits(kept->volume, now->volume);
+    }
+  }
+  return t;
+}
+
 BakeRow MakeRow(const BenchScene& scene, const Config& config, const BakeJob& job, const Timed& t,
                 const Reference& reference, const std::string& referenceName) {
   BakeRow row;
@@ -575,36 +597,61 @@ absl::Status Run(const Options& opt) {
     info.gridProbes = job.grid.ProbeCount();
     for (const TriangleMesh& m : job.scene.meshes) info.triangles += int64_t(m.TriangleCount());
 
-    auto bake = [&](const Config& config, const v1::BakeSettings& settings,
-                    const Reference& reference, const std::string& refName) -> absl::Status {
-      job.settings = ResolveSettings(settings);
-      job.settings.distantLightTracing = !config.formerDefault;
-      job.settings.environmentGuide = !config.formerDefault;
-      job.settings.lightVisibilityFloor = config.formerDefault ? 0.125 : 0.0;
-      PB_ASSIGN_OR_RETURN(const Timed t, TimedBake(job, 1, repeats));
-      BakeRow row = MakeRow(scene, config, job, t, reference, refName);
+    // `settings` as `config` bakes them (the former default's switches included).
+    auto settingsFor = [](const Config& config, const v1::BakeSettings& settings) {
+      BakeSettings s = ResolveSettings(settings);
+      s.distantLightTracing = !config.formerDefault;
+      s.environmentGuide = !config.formerDefault;
+      s.lightVisibilityFloor = config.formerDefault ? 0.125 : 0.0;
+      return s;
+    };
+    auto record = [&](const Config& config, const BakeJob& baked, const Timed& t,
+                      const Reference& reference, const std::string& refName) {
+      BakeRow row = MakeRow(scene, config, baked, t, reference, refName);
       log->info(
           "{} {} spp={}: cpu {:.3f} s, irradiance error {:.4g}, honesty {:.2f} (L0 {:.2f}, RGB "
           "{:.2f})",
-          scene.name, config.id, job.settings.samplesPerProbe, t.cpu, row.error.meanIrradianceRel,
+          scene.name, config.id, baked.settings.samplesPerProbe, t.cpu, row.error.meanIrradianceRel,
           row.error.honesty, row.error.honestyL0, row.error.honestyIrradiance);
       info.bakedProbes = row.probes;
       results.rows.push_back(std::move(row));
+    };
+    auto bake = [&](const Config& config, const v1::BakeSettings& settings,
+                    const Reference& reference, const std::string& refName) -> absl::Status {
+      job.settings = settingsFor(config, settings);
+      PB_ASSIGN_OR_RETURN(const Timed t, TimedBake(job, 1, repeats));
+      record(config, job, t, reference, refName);
       return absl::OkStatus();
     };
     const std::string sameName = scene.analytic ? "exact" : "same depth";
     const std::string deepName = scene.analytic ? "exact" : "deep";
-    for (const Config& config : LadderConfigs()) {
+    const std::vector<Config> ladder = LadderConfigs();
+    const auto former =
+        std::find_if(ladder.begin(), ladder.end(), [](const Config& c) { return c.formerDefault; });
+    for (const Config& config : ladder) {
+      if (config.formerDefault) continue;  // baked in pairs with the default, below
       std::vector<int64_t> counts = results.ladder;
-      // The default and the former default go on to 8x the ladder, so that their times to 2% and
-      // 1% are measured, not extrapolated.
-      if (!opt.quick && (config.id == "nee_mis_sobol" || config.id == "nee_mis_sobol_v19")) {
-        for (int64_t spp = 2 * ladderMax; spp <= 8 * ladderMax; spp *= 2) counts.push_back(spp);
+      if (config.id != "nee_mis_sobol" || former == ladder.end()) {
+        for (int64_t spp : counts) {
+          v1::BakeSettings s = config.settings;
+          s.set_samples_per_probe(spp);
+          PB_RETURN_IF_ERROR(bake(config, s, sameDepth, sameName));
+        }
+        continue;
       }
+      // The default and the former default, in turn at each count (TimedPair), on to 8x the
+      // ladder, so that their times to 2% and 1% are measured, not extrapolated.
+      if (!opt.quick)
+        for (int64_t spp = 2 * ladderMax; spp <= 8 * ladderMax; spp *= 2) counts.push_back(spp);
       for (int64_t spp : counts) {
         v1::BakeSettings s = config.settings;
         s.set_samples_per_probe(spp);
-        PB_RETURN_IF_ERROR(bake(config, s, sameDepth, sameName));
+        BakeJob now = job, before = job;
+        now.settings = settingsFor(config, s);
+        before.settings = settingsFor(*former, s);
+        PB_ASSIGN_OR_RETURN(const auto t, TimedPair(now, before, repeats));
+        record(config, now, t.first, sameDepth, sameName);
+        record(*former, before, t.second, sameDepth, sameName);
       }
     }
     for (const Config& config : AdaptiveConfigs(opt.quick, ladderMax))
