@@ -139,7 +139,7 @@ class EnvironmentEmitter {
       double pdf;
       if (u.x < alpha) {
         s->wi = guide_->Sample(cell, {std::min(u.x / alpha, kOneMinusEpsilon), u.y});
-        if (n && Dot(*n, s->wi) <= 0) return false;  // no light arrives from below the surface
+        if (Dot(*n, s->wi) <= 0) return false;  // no light arrives from below the surface
         s->radiance = environment_->RadianceAndPdf(s->wi, n, &pdf);
       } else {
         const double ux = std::min((u.x - alpha) / (1 - alpha), kOneMinusEpsilon);
