@@ -36,10 +36,11 @@ EnvironmentGuide::Ray ThroughACone(const Vec3d& /*x*/, const Vec3d* wi, const Ve
 
 TEST(EnvironmentGuide, SamplesAreDistributedAsItsPdf) {
   const EnvironmentGuide guide = EnvironmentGuide::Build({0, 0, 0}, {1, 1, 1}, ThroughACone);
-  // The cone is (1 - cos 30 deg) / 2 = 6.7% of the sphere: the pilot sees the box closed (its
-  // 1024 rays measure 6.7% to a standard error of 0.8%, so +-3% is about 4 of them), and every
-  // cell guides.
-  EXPECT_NEAR(guide.OpenFraction(), 0.067, 0.03);
+  // The cone is f = (1 - cos 30 deg) / 2 = 6.7% of the sphere: the pilot sees the box closed (its
+  // kPilotRays rays measure f to a standard error of sqrt(f (1 - f) / kPilotRays); accepted
+  // within 4 of them), and every cell guides.
+  const double f = (1 - std::cos(kPi / 6)) / 2;
+  EXPECT_NEAR(guide.OpenFraction(), f, 4 * std::sqrt(f * (1 - f) / EnvironmentGuide::kPilotRays));
   ASSERT_GT(guide.dims(0), 0);
   const int64_t cells = int64_t(guide.dims(0)) * guide.dims(1) * guide.dims(2);
   EXPECT_EQ(guide.GuidedCells(), cells);

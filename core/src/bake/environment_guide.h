@@ -70,8 +70,10 @@ class EnvironmentGuide {
   static constexpr int64_t kRayBudget = int64_t{1} << 17;
   // The guide is built only when less than kOpenFraction of the environment's light arrives along
   // kPilotRays rays from random points of the box (below); where it reaches most of the scene
-  // there is little to learn, and the cells' rays would cost more than they save.
-  static constexpr int kPilotRays = 1024;
+  // there is little to learn, and the cells' rays would cost more than they save. The pilot's
+  // share has a standard error of at most 2.7% near kOpenFraction (the demo room reads 0.031, the
+  // closed-form scene 0.53, the courtyard 0.68), and its rays are all an open scene pays.
+  static constexpr int kPilotRays = 256;
   // A cell where this fraction of the environment's light arrives along its first
   // kPilotRaysPerCell rays is open: the environment's own sampling is left alone there, and the
   // rest of its rays are not traced.
