@@ -3,9 +3,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include <algorithm>
 #include <atomic>
-#include <cmath>
 
 #include "light_set.h"
 #include "probe_integrator.h"
