@@ -93,9 +93,10 @@ struct Options {
 struct Config {
   std::string id, label, group;
   v1::BakeSettings settings;  // samples_per_probe unset for ladder configs
-  // The default of baker version 19, before light traced from directional lights (20) and the
-  // environment guide and the visibility floor of 1/32 (21): BakeSettings' distantLightTracing
-  // and environmentGuide off and lightVisibilityFloor 1/8, none of them job fields.
+  // The default of baker version 19, before light traced from directional lights (20), the
+  // environment guide and the visibility floor of 1/32 (21) and the shadow rays' roulette (23):
+  // BakeSettings' distantLightTracing, environmentGuide and shadowRoulette off and
+  // lightVisibilityFloor 1/8, none of them job fields.
   bool formerDefault = false;
 };
 
@@ -603,6 +604,7 @@ absl::Status Run(const Options& opt) {
       s.distantLightTracing = !config.formerDefault;
       s.environmentGuide = !config.formerDefault;
       s.lightVisibilityFloor = config.formerDefault ? 0.125 : 0.0;
+      s.shadowRoulette = !config.formerDefault;
       return s;
     };
     auto record = [&](const Config& config, const BakeJob& baked, const Timed& t,

@@ -499,8 +499,10 @@ class ProbeBaker {
         ShCoeffCount(settings_.shOrder), maxBatches_, sampledMayBeNonZero_, settings_.visibility,
         settings_.skyTransferOrder > 0 ? ShCoeffCount(settings_.skyTransferOrder) : 0);
     AddDeltaLights(start.p, &estimate);
+    const double roulette =
+        integrator_.RouletteRadiance(start.p, start.key, settings_.samplesPerProbe, counters_);
     int batches = 0;
-    if (!TraceRounds(start, &estimate, &batches)) return Outcome::kStopped;
+    if (!TraceRounds(start, roulette, &estimate, &batches)) return Outcome::kStopped;
     finisher_.Finish(estimate, batches, probe, volume);
     return FitsInFloats(*volume, probe) ? Outcome::kDone : Outcome::kOverflow;
   }
@@ -531,8 +533,10 @@ class ProbeBaker {
   // Traces the probe's batches in rounds: all of them at once, or (adaptive) a first round of
   // kMinAdaptiveBatches and then pairs until the error target is met at two successive rounds
   // (bake.h). The rounds are fixed by the settings alone, so the result never depends on the
-  // thread count. Sets *batches to the batches traced; false when stopped.
-  bool TraceRounds(const ProbeStart& start, ProbeEstimate* estimate, int* batches) const {
+  // thread count. Every round plays the shadow rays' roulette against `roulette`
+  // (ProbeIntegrator::RouletteRadiance). Sets *batches to the batches traced; false when stopped.
+  bool TraceRounds(const ProbeStart& start, double roulette, ProbeEstimate* estimate,
+                   int* batches) const {
     const bool adaptive = settings_.targetRelError > 0;
     int next = 0;
     bool metBefore = false;  // the previous round's bound was under the target
@@ -540,7 +544,7 @@ class ProbeBaker {
       const int roundEnd = !adaptive
                                ? maxBatches_
                                : std::min(maxBatches_, next == 0 ? kMinAdaptiveBatches : next + 2);
-      if (!TraceBatches(start, next, roundEnd, estimate) || Stopped()) return false;
+      if (!TraceBatches(start, roulette, next, roundEnd, estimate) || Stopped()) return false;
       next = roundEnd;
       if (adaptive) {
         const bool met = AdaptiveErrorBound(estimate->Relative(next).irradiance, next) <=
@@ -556,7 +560,8 @@ class ProbeBaker {
   // Traces batches [first, end) in parallel, consecutive batches in groups of about
   // ProbeIntegrator::kSamplesPerCall samples, so that the rays from the probe of small batches
   // share packets (same sums). False when cancelled.
-  bool TraceBatches(const ProbeStart& start, int first, int end, ProbeEstimate* estimate) const {
+  bool TraceBatches(const ProbeStart& start, double roulette, int first, int end,
+                    ProbeEstimate* estimate) const {
     std::atomic<bool> cancelled{false};  // the tracing saw `cancel` raised
     const int groups = (end - first + batchesPerCall_ - 1) / batchesPerCall_;
     tbb::parallel_for(0, groups, [&](int g) {
@@ -568,7 +573,7 @@ class ProbeBaker {
                           estimate->BatchSum(b), estimate->BatchMoments(b), visibilityMaxDistance_,
                           estimate->BatchTransfer(b)};
       if (!integrator_.TraceBatches(start.p, start.key, uint32_t(from), {work, size_t(to - from)},
-                                    counters_, cancel_))
+                                    counters_, cancel_, roulette))
         cancelled.store(true, std::memory_order_relaxed);
       for (int b = from; b < to; ++b) estimate->SetBatchSamples(b, work[b - from].count);
     });

@@ -14,6 +14,7 @@
 #include "probebake/sampling/warps.h"
 #include "probebake/sh/sh_basis.h"
 #include "ray_offset.h"
+#include "shadow_roulette.h"
 #include "surface_material.h"
 
 namespace probebake {
@@ -245,7 +246,8 @@ double DistantLightPaths::OtherDensitySquared(uint32_t light, const Vec3d& x, co
 }
 
 Vec3d DistantLightPaths::ConnectVertex(const Vec3d& x, const Vec3d& n, const Vec3f& spawn,
-                                       uint32_t batch, double u, double d1, TraceCounters* counters,
+                                       uint32_t batch, double u, double d1,
+                                       const Roulette& roulette, TraceCounters* counters,
                                        RayObserver* observer) const {
   const size_t batches = batchSizes_.size();
   Vec3d sum;
@@ -266,8 +268,12 @@ Vec3d DistantLightPaths::ConnectVertex(const Vec3d& x, const Vec3d& n, const Vec
     const double c = y.a * Boost(si, batch) / g, q = Ratio(si, batch) * y.a / d1;
     const double w = c * c / (y.pN * y.pN + y.pB * y.pB + q * q + c * c);
     const double paths = double(pathCounts_[si * batches + batch]);
-    const Vec3d value = y.weight * (geometry * w * double(kept) / paths);
+    Vec3d value = y.weight * (geometry * w * double(kept) / paths);
     if (!(MaxComponent(value) > 0)) continue;
+    const double played =
+        ShadowRouletteWeight(MaxComponent(value) * roulette.scale, roulette.threshold, roulette.u);
+    if (played == 0) continue;
+    value *= played;
     const Vec3d to = Vec3d(y.spawn) - Vec3d(spawn);
     const double distance = Length(to);
     ++counters->rays;
@@ -279,8 +285,8 @@ Vec3d DistantLightPaths::ConnectVertex(const Vec3d& x, const Vec3d& n, const Vec
 }
 
 void DistantLightPaths::ConnectProbe(const Vec3d& p, uint32_t batch, int64_t count, int order,
-                                     std::span<double> sum, TraceCounters* counters,
-                                     RayObserver* observer) const {
+                                     const ProbeRoulette& roulette, std::span<double> sum,
+                                     TraceCounters* counters, RayObserver* observer) const {
   const size_t batches = batchSizes_.size();
   PB_CHECK_LT(size_t(batch), batches);
   PB_CHECK_EQ(count, batchSizes_[batch]);
@@ -289,7 +295,9 @@ void DistantLightPaths::ConnectProbe(const Vec3d& p, uint32_t batch, int64_t cou
   for (size_t si = 0; si < sources_.size(); ++si) {
     const double ratio = Ratio(si, batch);  // light paths per probe sample
     const double boost = Boost(si, batch);
-    for (const Vertex& v : paths_[si * batches + batch]) {
+    const std::vector<Vertex>& vertices = paths_[si * batches + batch];
+    for (size_t k = 0; k < vertices.size(); ++k) {
+      const Vertex& v = vertices[k];
       const Vec3d toProbe = p - v.x;
       const double r2 = Dot(toProbe, toProbe);
       if (!(r2 > 0)) continue;
@@ -300,8 +308,17 @@ void DistantLightPaths::ConnectProbe(const Vec3d& p, uint32_t batch, int64_t cou
       const double light = ratio * v.a;
       const double pN = d1 * v.pN, pB = d1 * v.pB, c = d1 * v.c * boost;
       const double w = light * light / (light * light + pN * pN + pB * pB + c * c);
-      const Vec3d value = v.weight * (cosY / r2 * w / ratio);
+      Vec3d value = v.weight * (cosY / r2 * w / ratio);
       if (!(MaxComponent(value) > 0)) continue;
+      // A probe sample of radiance L adds 4 pi L Y to the sum.
+      const double radiance = MaxComponent(value) / (4 * std::numbers::pi);
+      if (radiance < roulette.threshold) {
+        const uint64_t key = Hash(roulette.key, uint64_t(si), uint64_t(k));
+        const double played =
+            ShadowRouletteWeight(radiance, roulette.threshold, U32ToUnit(uint32_t(key >> 32)));
+        if (played == 0) continue;
+        value *= played;
+      }
       // From the vertex's ray origin (off its surface, on the probe's side) to the probe. Traced
       // one at a time: 8-wide packets from the probe toward the vertices, whose directions
       // spread as the sunlit points do, took 10% longer on the demo room.

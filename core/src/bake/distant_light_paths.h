@@ -102,15 +102,28 @@ class DistantLightPaths {
   // from, ray origin spawn) of batch `batch`, whose first vertex has density d1: one kept first
   // hit per traced light, picked by u in [0, 1). Returns what x receives, weighted, per unit of
   // (albedo at x / pi) x the path's throughput. One shadow ray per light that can light x, told
-  // to `observer` when not null.
+  // to `observer` when not null, played by `roulette` first when its threshold is set.
+  // Roulette on a join's shadow ray (shadow_roulette.h): the join's value times `scale` (the
+  // path's throughput x albedo / pi, largest channel) is what it adds to the path's radiance.
+  struct Roulette {
+    double scale = 0, threshold = 0, u = 0;
+  };
   Vec3d ConnectVertex(const Vec3d& x, const Vec3d& n, const Vec3f& spawn, uint32_t batch, double u,
-                      double d1, TraceCounters* counters, RayObserver* observer) const;
+                      double d1, const Roulette& roulette, TraceCounters* counters,
+                      RayObserver* observer) const;
 
   // L: adds to `sum` ((order+1)^2 x 3 doubles) batch `batch`'s light paths joined to the probe at
   // p, its shadow rays told to `observer` when not null. Precondition: count is the
-  // batchSizes[batch] of Build.
-  void ConnectProbe(const Vec3d& p, uint32_t batch, int64_t count, int order, std::span<double> sum,
-                    TraceCounters* counters, RayObserver* observer) const;
+  // batchSizes[batch] of Build. threshold > 0: each join whose value is below what a probe sample
+  // of radiance `threshold` adds is played by roulette (shadow_roulette.h) with a number from
+  // Hash(key, the vertex's index).
+  struct ProbeRoulette {
+    double threshold = 0;
+    uint64_t key = 0;
+  };
+  void ConnectProbe(const Vec3d& p, uint32_t batch, int64_t count, int order,
+                    const ProbeRoulette& roulette, std::span<double> sum, TraceCounters* counters,
+                    RayObserver* observer) const;
 
   // For logs and tests: light paths per probe sample of `light` (lambda; 0 when not traced), the
   // pilot's fraction of first hits kept, and the vertices kept over all batches.

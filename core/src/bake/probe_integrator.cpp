@@ -18,6 +18,7 @@
 #include "probebake/sh/sh_basis.h"
 #include "probebake/volume/visibility_map.h"
 #include "ray_offset.h"
+#include "shadow_roulette.h"
 #include "surface_material.h"
 
 namespace probebake {
@@ -36,7 +37,9 @@ inline constexpr bool kRotatedSetsAtProbe = std::is_same_v<S, SobolSampler>;
 constexpr uint64_t kProbeSets = 3, kVertexSets = 4;
 
 // The stream of the numbers that pick a sunlit point to join a vertex to.
-constexpr uint64_t kConnectTag = 0x636f6e6e656374;  // "connect"
+constexpr uint64_t kConnectTag = 0x636f6e6e656374;     // "connect"
+constexpr uint64_t kRouletteTag = 0x726f756c65747465;  // "roulette"
+constexpr uint64_t kPilotTag = 0x70696c6f74;           // "pilot"
 
 // A ray's slot when there is no such ray, and when a shadow ray needs no tracing (visible).
 constexpr uint16_t kNoRay = 0xFFFF, kVisible = 0xFFFE;
@@ -418,6 +421,7 @@ struct ProbeIntegrator::Probe {
   bool lightSample = false;         // a light is sampled at the probe
   uint64_t key = 0;                 // ProbeSite::key
   uint32_t firstBatch = 0;          // of the call
+  double rouletteRadiance = 0;      // the shadow rays' roulette threshold; 0: none
 };
 
 // Up to kWidth samples traced together: started at the probe together, then wave by wave. "By
@@ -550,32 +554,51 @@ bool ProbeIntegrator::TraceBatch(const Vec3d& p, uint64_t probeKey, uint32_t bat
 
 bool ProbeIntegrator::TraceBatches(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
                                    std::span<const BatchWork> work, SharedCounters* shared,
-                                   const std::atomic<bool>* cancel) const {
+                                   const std::atomic<bool>* cancel, double rouletteRadiance) const {
+  return Dispatch(p, probeKey, firstBatch, work, shared, cancel, {rouletteRadiance, true});
+}
+
+double ProbeIntegrator::RouletteRadiance(const Vec3d& p, uint64_t probeKey, int64_t samples,
+                                         SharedCounters* shared) const {
+  const int64_t count = std::min(kPilotSamples, samples / kPilotDivisor);
+  if (!settings_.shadowRoulette || !lightSampling_ || count < kMinPilotSamples) return 0;
+  std::vector<double> sum(3 * size_t(ShCoeffCount(settings_.shOrder)));
+  // Batch 0's light paths, for the joins; a stream of its own (another key).
+  const BatchWork work{count, sum};
+  SharedCounters pilot;
+  Dispatch(p, Hash(probeKey, kPilotTag), 0, {&work, 1}, &pilot, nullptr, {0, false});
+  // Its rays are the bake's work; its paths are no sample of the probe's.
+  if (shared) shared->Add({pilot.rays.load(), 0, pilot.shadowRays.load()});
+  // The mean over the sphere of radiance sum_i c_i Y_i is c_0 Y_0.
+  const Vec3d c0(sum[0], sum[1], sum[2]);
+  constexpr double kY00 = 0.28209479177387814347;  // 1 / (2 sqrt(pi))
+  return kRouletteShare * MaxComponent(c0) / double(count) * kY00;
+}
+
+bool ProbeIntegrator::Dispatch(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
+                               std::span<const BatchWork> work, SharedCounters* shared,
+                               const std::atomic<bool>* cancel, const CallOptions& options) const {
   int64_t count = 0;
   for (const BatchWork& w : work) count += w.count;
   const bool sobol = settings_.sampler == SamplerKind::kSobol;
+  const auto run = [&]<bool kMedium, int kWidth>() {
+    return sobol ? TraceGroups<kMedium, kWidth, SobolSampler>(p, probeKey, firstBatch, work, shared,
+                                                              cancel, options)
+                 : TraceGroups<kMedium, kWidth, IndependentSampler>(p, probeKey, firstBatch, work,
+                                                                    shared, cancel, options);
+  };
   // A medium's paths draw their numbers one after the other from their batch's sampler
   // (TraceWaves), which only a group of one leaves to them.
-  if (medium_) {
-    return sobol ? TraceGroups<true, 1, SobolSampler>(p, probeKey, firstBatch, work, shared, cancel)
-                 : TraceGroups<true, 1, IndependentSampler>(p, probeKey, firstBatch, work, shared,
-                                                            cancel);
-  }
-  if (packets_ && count >= kMinPacketSamples) {
-    return sobol ? TraceGroups<false, kChunk, SobolSampler>(p, probeKey, firstBatch, work, shared,
-                                                            cancel)
-                 : TraceGroups<false, kChunk, IndependentSampler>(p, probeKey, firstBatch, work,
-                                                                  shared, cancel);
-  }
-  return sobol ? TraceGroups<false, 1, SobolSampler>(p, probeKey, firstBatch, work, shared, cancel)
-               : TraceGroups<false, 1, IndependentSampler>(p, probeKey, firstBatch, work, shared,
-                                                           cancel);
+  if (medium_) return run.template operator()<true, 1>();
+  if (packets_ && count >= kMinPacketSamples) return run.template operator()<false, kChunk>();
+  return run.template operator()<false, 1>();
 }
 
 template <bool kMedium, int kWidth, typename S>
 bool ProbeIntegrator::TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
                                   std::span<const BatchWork> work, SharedCounters* shared,
-                                  const std::atomic<bool>* cancel) const {
+                                  const std::atomic<bool>* cancel,
+                                  const CallOptions& options) const {
   static_assert(kWidth == 1 || (!kMedium && kWidth == kChunk));
   TraceCounters local;
   std::vector<S> samplers;
@@ -609,6 +632,7 @@ bool ProbeIntegrator::TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t fi
   probe.lightSample = lightSampling_ && probe.total > 0;
   probe.key = probeKey;
   probe.firstBatch = firstBatch;
+  probe.rouletteRadiance = options.rouletteRadiance;
 
   group.observer =
       observer_ && observer_->BeginCall(probeKey, firstBatch, count) ? observer_ : nullptr;
@@ -632,11 +656,13 @@ bool ProbeIntegrator::TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t fi
     AddToSums<kMedium>(probe, group, work);
     local.samples += group.n;
   }
-  if (lightPaths_) {
+  if (lightPaths_ && options.connectProbe) {
     for (size_t k = 0; k < work.size(); ++k) {
       if (work[k].count == 0) continue;
+      const DistantLightPaths::ProbeRoulette roulette{
+          options.rouletteRadiance, Hash(probeKey, uint64_t(firstBatch + k), kRouletteTag)};
       lightPaths_->ConnectProbe(p, firstBatch + uint32_t(k), work[k].count, settings_.shOrder,
-                                work[k].sum, &local, group.observer);
+                                roulette, work[k].sum, &local, group.observer);
     }
   }
   if (shared) shared->Add(local);
@@ -808,13 +834,26 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
           // Joined to a sunlit point (distant_light_paths.h), with a number of its own.
           const uint64_t key = Hash(probe.key, uint64_t(probe.firstBatch + g->batch[j]),
                                     uint64_t(g->index[j]), uint64_t(bounce), kConnectTag);
+          const DistantLightPaths::Roulette roulette{MaxComponent(betaIn * *albedo) * kInvPi,
+                                                     probe.rouletteRadiance,
+                                                     U32ToUnit(uint32_t(key))};
           const Vec3d e = lightPaths_->ConnectVertex(
               hit.p, v.n, v.spawn, probe.firstBatch + g->batch[j], U32ToUnit(uint32_t(key >> 32)),
-              s.d1, counters, g->observer);
+              s.d1, roulette, counters, g->observer);
           if (MaxComponent(e) > 0) s.radiance += betaIn * *albedo * e * kInvPi;
         }
       }
 
+      if (v.lightSampled && probe.rouletteRadiance > 0) {
+        // Roulette on a weak light sample (shadow_roulette.h), with a number of its own.
+        const uint64_t key = Hash(probe.key, uint64_t(probe.firstBatch + g->batch[j]),
+                                  uint64_t(g->index[j]), uint64_t(bounce), kRouletteTag);
+        const double w =
+            ShadowRouletteWeight(MaxComponent(v.neeBase) * v.neeScale, probe.rouletteRadiance,
+                                 U32ToUnit(uint32_t(key >> 32)));
+        v.lightSampled = w > 0;
+        v.neeScale *= w;
+      }
       if (v.lightSampled) {
         const int r = shadow.count++;
         ++counters->rays;  // counted whether traced or not

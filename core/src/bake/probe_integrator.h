@@ -56,6 +56,14 @@
 // estimator in place of NEE + MIS for the sky. Local lights keep NEE + MIS along the same paths.
 // Escapes past maxDepth count, as the environment's emission does in an ordinary bake.
 //
+// Shadow-ray roulette (shadow_roulette.h): a path's light sample or join to a sunlit point whose
+// contribution, known before its shadow ray is traced, is below a threshold T is traced with
+// probability contribution / T and weighted by the inverse. T is kRouletteShare of the probe's
+// mean radiance, read from a pilot of a few paths of its own before its batches (RouletteRadiance),
+// so it is the same for every batch, thread and shard; the probe's own light samples are always
+// traced. The joins of light paths to the probe (DistantLightPaths::ConnectProbe) play the same
+// roulette, a join counting as a probe sample of radiance value / 4 pi.
+//
 // One driver traces every sample, as waves: a group of samples starts together at the probe
 // (each path's first ray, each probe light sample's shadow ray), and wave d then shades every
 // path's vertex d and traces its rays (its light sample's shadow ray, its continuation). A
@@ -138,10 +146,23 @@ class ProbeIntegrator {
   // TraceBatch for batches firstBatch + k, k < work.size(), with work[k]'s count and sum: the
   // same sums as one TraceBatch call each. Traced together, small batches' rays from the probe
   // share packets: batches of kSamplesPerCall samples together make the most of them.
+  // rouletteRadiance > 0: the shadow rays of the paths' light samples and joins are played by
+  // Russian roulette against it (shadow_roulette.h): RouletteRadiance's value for the probe.
   static constexpr int kSamplesPerCall = 256;
   bool TraceBatches(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
                     std::span<const BatchWork> work, SharedCounters* shared,
-                    const std::atomic<bool>* cancel) const;
+                    const std::atomic<bool>* cancel, double rouletteRadiance = 0) const;
+
+  // The roulette threshold of the shadow rays for the probe at p (key probeKey) that bakes up to
+  // `samples` samples: kRouletteShare x the mean radiance that a pilot of min(kPilotSamples,
+  // samples / kPilotDivisor) paths of its own finds there (their numbers apart from the bake's,
+  // so every batch stays independent of it), with no roulette. 0 (none) when fewer than
+  // kMinPilotSamples would be traced, or with light sampling off. Adds its rays to *shared (when
+  // not null), and no samples: its paths are not the probe's.
+  static constexpr double kRouletteShare = 0.2;
+  static constexpr int64_t kPilotSamples = 16, kPilotDivisor = 128, kMinPilotSamples = 4;
+  double RouletteRadiance(const Vec3d& p, uint64_t probeKey, int64_t samples,
+                          SharedCounters* shared) const;
 
   // Reports the rays of TraceBatches calls to `observer` (ray_observer.h); null: none (the
   // default). Not thread-safe against running calls: set before tracing.
@@ -183,11 +204,21 @@ class ProbeIntegrator {
   template <typename S>
   static void DrawTwoVertices(S& sampler, VertexNumbers* a, VertexNumbers* b);
 
+  // A call's options beyond its batches: the roulette threshold, and whether the probe is
+  // joined to the light paths (not in a pilot, whose samples are no batch of theirs).
+  struct CallOptions {
+    double rouletteRadiance = 0;
+    bool connectProbe = true;
+  };
+  // TraceBatches with `options`: the call in TraceGroups' instantiation for its size and scene.
+  bool Dispatch(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
+                std::span<const BatchWork> work, SharedCounters* shared,
+                const std::atomic<bool>* cancel, const CallOptions& options) const;
   // The whole call with groups of kWidth samples (kChunk: packets; 1: one path at a time).
   template <bool kMedium, int kWidth, typename S>
   bool TraceGroups(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
                    std::span<const BatchWork> work, SharedCounters* shared,
-                   const std::atomic<bool>* cancel) const;
+                   const std::atomic<bool>* cancel, const CallOptions& options) const;
   // Draws the random numbers of the group's samples at the probe (and, without a medium, at
   // their first vertex), samples the lights there and traces the rays from the probe.
   template <bool kMedium, int kWidth, typename S>

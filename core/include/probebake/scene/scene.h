@@ -262,6 +262,9 @@ struct BakeSettings {
   // instead of its own. Not a job field: set (to 1/8) only to measure the default before baker
   // version 21.
   double lightVisibilityFloor = 0;
+  // Russian roulette on the paths' weak shadow rays (core/src/bake/shadow_roulette.h). Not a job
+  // field: off only to measure it.
+  bool shadowRoulette = true;
 };
 
 // A job ready to bake.
