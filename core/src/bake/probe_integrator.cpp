@@ -36,7 +36,8 @@ inline constexpr bool kRotatedSetsAtProbe = std::is_same_v<S, SobolSampler>;
 // scattering vertex (VertexNumbers).
 constexpr uint64_t kProbeSets = 3, kVertexSets = 4;
 
-// The stream of the numbers that pick a sunlit point to join a vertex to.
+// The streams of the numbers that pick a sunlit point to join a vertex to, that play a shadow
+// ray's roulette, and of a probe's pilot paths.
 constexpr uint64_t kConnectTag = 0x636f6e6e656374;     // "connect"
 constexpr uint64_t kRouletteTag = 0x726f756c65747465;  // "roulette"
 constexpr uint64_t kPilotTag = 0x70696c6f74;           // "pilot"
@@ -563,7 +564,8 @@ double ProbeIntegrator::RouletteRadiance(const Vec3d& p, uint64_t probeKey, int6
   const int64_t count = std::min(kPilotSamples, samples / kPilotDivisor);
   if (!settings_.shadowRoulette || !lightSampling_ || count < kMinPilotSamples) return 0;
   std::vector<double> sum(3 * size_t(ShCoeffCount(settings_.shOrder)));
-  // Batch 0's light paths, for the joins; a stream of its own (another key).
+  // A stream of its own (another key), joined to batch 0's light paths without the probe's joins
+  // to them: a rough estimate, which is all a threshold needs (any one keeps the bake unbiased).
   const BatchWork work{count, sum};
   SharedCounters pilot;
   Dispatch(p, Hash(probeKey, kPilotTag), 0, {&work, 1}, &pilot, nullptr, {0, false});
