@@ -102,9 +102,10 @@ class DistantLightPaths {
   // from, ray origin spawn) of batch `batch`, whose first vertex has density d1: one kept first
   // hit per traced light, picked by u in [0, 1). Returns what x receives, weighted, per unit of
   // (albedo at x / pi) x the path's throughput. One shadow ray per light that can light x, told
-  // to `observer` when not null, played by `roulette` first when its threshold is set.
-  // Roulette on a join's shadow ray (shadow_roulette.h): the join's value times `scale` (the
-  // path's throughput x albedo / pi, largest channel) is what it adds to the path's radiance.
+  // to `observer` when not null, played by `roulette` first when its threshold is set (one
+  // number u for the joins to every light): roulette on a join's shadow ray (shadow_roulette.h),
+  // whose value times `scale` (the path's throughput x albedo / pi, largest channel) is what it
+  // adds to the path's radiance.
   struct Roulette {
     double scale = 0, threshold = 0, u = 0;
   };
@@ -116,7 +117,7 @@ class DistantLightPaths {
   // p, its shadow rays told to `observer` when not null. Precondition: count is the
   // batchSizes[batch] of Build. threshold > 0: each join whose value is below what a probe sample
   // of radiance `threshold` adds is played by roulette (shadow_roulette.h) with a number from
-  // Hash(key, the vertex's index).
+  // Hash(key, its light's index among the traced ones, its index among that light's vertices).
   struct ProbeRoulette {
     double threshold = 0;
     uint64_t key = 0;
