@@ -95,7 +95,7 @@ TEST(ShadowRoulette, KeepsTheRoomsEstimateWithFewerRays) {
   // coefficient's difference over the two bakes' combined standard error, z, is near Student's t
   // with 63 degrees of freedom (E[z^2] ~ 1.03). A probe's 9 coefficients share its paths, so a
   // pair's mean z^2 over 18 probes x 9 varies more than independent ones would: measured 0.70 to
-  // 1.72 over 10 pairs of bakes (the roulette on in neither, in one: alike), a standard deviation
+  // 1.72 over 11 pairs of bakes (the roulette on in neither, in one: alike), a standard deviation
   // of about 0.25, so the mean of 4 pairs is accepted within 4 x 0.25 / 2 of 1.03. A weight that
   // dropped the rays not traced, or counted the survivors once, biases every probe the same way
   // (most of their light arrives through light samples and joins) and fails it.
