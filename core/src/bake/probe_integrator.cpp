@@ -846,8 +846,9 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
         }
       }
 
-      if (v.lightSampled && probe.rouletteRadiance > 0) {
-        // Roulette on a weak light sample (shadow_roulette.h), with a number of its own.
+      if (v.lightSampled && MaxComponent(v.neeBase) * v.neeScale < probe.rouletteRadiance) {
+        // Roulette on a weak light sample (shadow_roulette.h), with a number of its own (hashed
+        // for the weak ones alone).
         const uint64_t key = Hash(probe.key, uint64_t(probe.firstBatch + g->batch[j]),
                                   uint64_t(g->index[j]), uint64_t(bounce), kRouletteTag);
         const double w =
