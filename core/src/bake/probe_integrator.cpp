@@ -570,11 +570,10 @@ double ProbeIntegrator::RouletteRadiance(const Vec3d& p, uint64_t probeKey, int6
   SharedCounters pilot;
   Dispatch(p, Hash(probeKey, kPilotTag), 0, {&work, 1}, &pilot, nullptr, {0, false});
   // Its rays are the bake's work; its paths are no sample of the probe's.
-  if (shared) shared->Add({pilot.rays.load(), 0, pilot.shadowRays.load()});
+  if (shared) shared->Add({.rays = pilot.rays.load(), .shadowRays = pilot.shadowRays.load()});
   // The mean over the sphere of radiance sum_i c_i Y_i is c_0 Y_0.
   const Vec3d c0(sum[0], sum[1], sum[2]);
-  constexpr double kY00 = 0.28209479177387814347;  // 1 / (2 sqrt(pi))
-  return kRouletteShare * MaxComponent(c0) / double(count) * kY00;
+  return kRouletteShare * MaxComponent(c0) / double(count) * kShY00;
 }
 
 bool ProbeIntegrator::Dispatch(const Vec3d& p, uint64_t probeKey, uint32_t firstBatch,
@@ -846,14 +845,15 @@ void ProbeIntegrator::TraceWaves(const Probe& probe, std::span<S> samplers, Grou
         }
       }
 
-      if (v.lightSampled && MaxComponent(v.neeBase) * v.neeScale < probe.rouletteRadiance) {
+      // What the light sample adds when its shadow ray arrives.
+      const double nee = v.lightSampled ? MaxComponent(v.neeBase) * v.neeScale : 0;
+      if (v.lightSampled && nee < probe.rouletteRadiance) {
         // Roulette on a weak light sample (shadow_roulette.h), with a number of its own (hashed
         // for the weak ones alone).
         const uint64_t key = Hash(probe.key, uint64_t(probe.firstBatch + g->batch[j]),
                                   uint64_t(g->index[j]), uint64_t(bounce), kRouletteTag);
         const double w =
-            ShadowRouletteWeight(MaxComponent(v.neeBase) * v.neeScale, probe.rouletteRadiance,
-                                 U32ToUnit(uint32_t(key >> 32)));
+            ShadowRouletteWeight(nee, probe.rouletteRadiance, U32ToUnit(uint32_t(key >> 32)));
         v.lightSampled = w > 0;
         v.neeScale *= w;
       }

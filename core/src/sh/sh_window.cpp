@@ -109,7 +109,6 @@ void ApplyShWindowRgb(const ShBandWindow& window, int order, std::span<Vec3d> co
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-constexpr double kY00 = 0.28209479177387814347;  // 1/(2 sqrt(π))
 constexpr int kMaxBands = kMaxShOrder + 1;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
@@ -146,7 +145,7 @@ struct ChannelBounds {
 ChannelBounds MakeBounds(const Bands& bands, std::span<const Vec3d> radiance) {
   ChannelBounds b;
   for (int ch = 0; ch < 3; ++ch) {
-    b.c[ch] = bands.factor[0] * radiance[0][ch] * kY00;
+    b.c[ch] = bands.factor[0] * radiance[0][ch] * kShY00;
     for (int j = 1; j < bands.count; ++j) {
       const int l = bands.l[j];
       double norm2 = 0;
@@ -227,7 +226,7 @@ class QuadraticOnSphere {
     constexpr double k2a = 1.0925484305920790705;   // sqrt(15/(4π))
     constexpr double k20 = 0.31539156525252000603;  // sqrt(5/(16π))
     constexpr double k22 = 0.54627421529603953527;  // sqrt(15/(16π))
-    c_ = kY00 * e[0];
+    c_ = kShY00 * e[0];
     double b[3] = {0, 0, 0};
     double a[3][3] = {};
     if (order >= 1) {

@@ -47,6 +47,10 @@ constexpr int ShIndex(int l, int m) {
 
 inline constexpr int kMaxShCoeffCount = ShCoeffCount(kMaxShOrder);
 
+// Y_0^0 = 1 / (2 sqrt(pi)), the constant basis function: a function's mean over the sphere is
+// its coefficient c_0 times it.
+inline constexpr double kShY00 = 0.28209479177387814347;
+
 // Writes Y_i(d), i = 0 .. ShCoeffCount(order)-1, to out. 0 <= order <= kMaxShOrder (checked).
 // d: a unit direction (see the non-unit rule above). T: float or double; float evaluates in float.
 template <typename T>
