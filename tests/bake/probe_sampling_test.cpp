@@ -174,8 +174,9 @@ TEST(ProbeSampling, UniformSkyAt256SamplesIsAccurateToOrderEight) {
 
 TEST(ProbeSampling, BlackGroundHemisphereAt256Samples) {
   // Issue target: every coefficient to l = 2 within 1e-2 of c0. Not met: the horizon is a
-  // discontinuity, which no randomised point set integrates faster than about n^-3/4, and honest
-  // independent batches cost (batches)^1/4 of that. Measured with the default 4 batches: RMS
+  // discontinuity, which no randomised point set integrates faster than about n^-3/4 (sets at the
+  // least cap discrepancy do no better than Fibonacci's here), and honest independent batches
+  // cost (batches)^1/4 of that. Measured with the default 4 batches: RMS
   // over probes 1.3e-2 for the worst coefficient (2 batches: 1.1e-2), worst probe 4e-2. What
   // holds: the error is the one reported (honesty), it does not depend on how the horizon lies
   // (a tilted ground gives the same), and the RMS stays below 1.5e-2 (the measured 1.31e-2 with
