@@ -173,28 +173,36 @@ TEST(ProbeSampling, UniformSkyAt256SamplesIsAccurateToOrderEight) {
 }
 
 TEST(ProbeSampling, BlackGroundHemisphereAt256Samples) {
-  // Issue target: every coefficient to l = 2 within 1e-2 of c0. Not met: the horizon is a
-  // discontinuity, which no randomised point set integrates faster than about n^-3/4 (sets at the
-  // least cap discrepancy do no better than Fibonacci's here), and honest independent batches
-  // cost (batches)^1/4 of that. Measured with the default 4 batches: RMS
-  // over probes 1.3e-2 for the worst coefficient (2 batches: 1.1e-2), worst probe 4e-2. What
-  // holds: the error is the one reported (honesty), it does not depend on how the horizon lies
-  // (a tilted ground gives the same), and the RMS stays below 1.5e-2 (the measured 1.31e-2 with
-  // 3 spreads of the RMS of 256 probes, 4.4% each, to spare). Two extra environment samples per
-  // sample reach 9.4e-3 but cost more than they gain wherever the ground reflects
-  // (docs/performance-history.md, 2026-12-07).
-  for (const bool tilted : {false, true}) {
-    const Vec3d normal = tilted ? Normalize(Vec3d{0.3, 0.2, 1}) : Vec3d{0, 0, 1};
-    BakeJob job = Lattice(2, 256, {0, 0, 1});
-    job.scene.environment = {Environment::Kind::kUniform, {1, 1, 1}, nullptr};
-    AddBlackPlane(&job, {0, 0, 0}, normal);
-    const LatticeErrors e = Compare(BakeOrDie(job), CapProjection(2, normal, 0));
-    const std::string what = tilted ? "tilted black ground" : "black ground";
-    Print(what + ", 256 samples, 4 batches", e);
-    EXPECT_LE(MaxOf(e.rms, 0, 9), 1.5e-2) << what;
-    ExpectHonest(e.honesty, what);
-    ExpectHonest(e.honestyL0, what + " (L0)");
-    ExpectPooledSpread(e, what);
+  // Issue target: every coefficient to l = 2 within 1e-2 of c0 at 256 samples. Not met: the
+  // horizon is a discontinuity, which no randomised point set integrates faster than about n^-3/4
+  // (sets at the least cap discrepancy do no better than Fibonacci's here), and honest
+  // independent batches cost (batches)^1/4 of that. Measured with the default 4 batches: RMS over
+  // probes 1.3e-2 for the worst coefficient (2 batches: 1.1e-2), worst probe 4e-2. What holds:
+  // the error is the one reported (honesty), it does not depend on how the horizon lies (a tilted
+  // ground gives the same), the RMS stays below 1.5e-2 at 256 samples (the measured 1.31e-2 with
+  // 3 spreads of the RMS of 256 probes, 4.4% each, to spare), and it falls as n^-3/4, so the
+  // target holds at 512 samples: 1.31e-2 x 2^-3/4 = 7.8e-3, 8.8e-3 with the same 3 spreads. Two
+  // extra environment samples per sample reach 9.4e-3 at 256 but cost more than they gain
+  // wherever the ground reflects (docs/performance-history.md, 2026-12-07).
+  struct Case {
+    int64_t samples;
+    double bound;
+  };
+  for (const Case c : {Case{256, 1.5e-2}, Case{512, 1e-2}}) {
+    for (const bool tilted : {false, true}) {
+      const Vec3d normal = tilted ? Normalize(Vec3d{0.3, 0.2, 1}) : Vec3d{0, 0, 1};
+      BakeJob job = Lattice(2, c.samples, {0, 0, 1});
+      job.scene.environment = {Environment::Kind::kUniform, {1, 1, 1}, nullptr};
+      AddBlackPlane(&job, {0, 0, 0}, normal);
+      const LatticeErrors e = Compare(BakeOrDie(job), CapProjection(2, normal, 0));
+      const std::string what = std::string(tilted ? "tilted black ground" : "black ground") + ", " +
+                               std::to_string(c.samples) + " samples";
+      Print(what + ", 4 batches", e);
+      EXPECT_LE(MaxOf(e.rms, 0, 9), c.bound) << what;
+      ExpectHonest(e.honesty, what);
+      ExpectHonest(e.honestyL0, what + " (L0)");
+      ExpectPooledSpread(e, what);
+    }
   }
 }
 
