@@ -172,7 +172,7 @@ TEST(ProbeSampling, UniformSkyAt256SamplesIsAccurateToOrderEight) {
   EXPECT_LE(MaxOf(two.worstL2, 0, two.worstL2.size()), 2e-3);
 }
 
-TEST(ProbeSampling, BlackGroundHemisphereAt256Samples) {
+TEST(ProbeSampling, BlackGroundHemisphereAt256And512Samples) {
   // Issue target: every coefficient to l = 2 within 1e-2 of c0 at 256 samples. Not met: the
   // horizon is a discontinuity, which no randomised point set integrates faster than about n^-3/4
   // (sets at the least cap discrepancy do no better than Fibonacci's here), and honest
